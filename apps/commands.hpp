@@ -1,0 +1,22 @@
+#pragma once
+// The `rubble` command line: one subcommand per file (cmd_<name>.cpp), registered in main.cpp.
+#include <CLI/CLI.hpp>
+
+namespace rubble::apps {
+
+/// Exit codes shared by every subcommand.
+enum ExitCode : int {
+  exit_ok = 0,                 ///< success
+  exit_failure = 1,            ///< an unexpected error (I/O, internal)
+  exit_bad_input = 2,          ///< the input (scene, file, arguments) is invalid
+  exit_numerical_failure = 3,  ///< the run stopped on a non-finite or runaway state
+};
+
+/// `rubble run [SCENE] [--out DIR]`: runs a scene (the built-in default without SCENE).
+void register_run_command(CLI::App& app);
+/// `rubble gravity IN.h5 ...`: self-gravity of a particle file.
+void register_gravity_command(CLI::App& app);
+/// `rubble post RUN.h5 ...`: metrics, plots and ParaView files of a run.
+void register_post_command(CLI::App& app);
+
+}  // namespace rubble::apps

@@ -1,0 +1,30 @@
+// rubble: Contact Dynamics for gravitational aggregates. Subcommands live in cmd_<name>.cpp.
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+
+#include "apps/commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"rubble: Contact Dynamics (Moreau-Jean + NLGS) for rubble-pile asteroids"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "rubble 0.1.0");
+  rubble::apps::register_run_command(app);
+#ifdef RUBBLE_HAS_GRAVITY_COMMAND
+  rubble::apps::register_gravity_command(app);
+#endif
+#ifdef RUBBLE_HAS_POST_COMMAND
+  rubble::apps::register_post_command(app);
+#endif
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // CLI11 prints usage errors; bad arguments are bad input.
+    const int code = app.exit(e);
+    return code == 0 ? 0 : rubble::apps::exit_bad_input;
+  } catch (const std::exception& e) {
+    std::cerr << "rubble: error: " << e.what() << "\n";
+    return rubble::apps::exit_failure;
+  }
+  return rubble::apps::exit_ok;
+}

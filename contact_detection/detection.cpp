@@ -1,0 +1,240 @@
+#include "contact_detection/detection.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "contact_detection/narrow_phase_spheres.hpp"
+#if RUBBLE_HAS_POLYHEDRA
+#include "contact_detection/narrow_phase_polyhedra.hpp"
+#endif
+
+namespace rubble {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+/// Axis-aligned box around a grain in world coordinates.
+struct Aabb {
+  Vec3 lower;
+  Vec3 upper;
+};
+
+bool overlap(const Aabb& a, const Aabb& b) {
+  return (a.lower.array() <= b.upper.array()).all() && (b.lower.array() <= a.upper.array()).all();
+}
+
+/// Box of a wall, or an unbounded box for planes (always tested).
+Aabb wall_box(const Model& model, const State& state, std::size_t wall, double margin) {
+  if (model.shape_kind[wall] == ShapeKind::box) {
+    const Box& box = model.boxes[static_cast<std::size_t>(model.shape_index[wall])];
+    // Extent of a rotated box along each world axis: sum_j |R_ij| h_j.
+    const Vec3 extent = state.orientation[wall].toRotationMatrix().cwiseAbs() * box.half_extents;
+    return {state.position[wall] - extent - Vec3::Constant(margin), state.position[wall] + extent + Vec3::Constant(margin)};
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  return {Vec3::Constant(-inf), Vec3::Constant(inf)};
+}
+
+}  // namespace
+
+const Vec3* DetectionMemory::find(const BodyPair& pair) const {
+  const auto it = std::lower_bound(pairs.begin(), pairs.end(), pair);
+  if (it == pairs.end() || *it != pair) return nullptr;
+  return &common_normals[static_cast<std::size_t>(it - pairs.begin())];
+}
+
+double resolve_alert_distance(const Model& model, const DetectionOptions& options) {
+  if (options.alert_distance > 0.0) return options.alert_distance;
+  double smallest = std::numeric_limits<double>::infinity();
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (model.is_grain(b)) smallest = std::min(smallest, model.bounding_radius[b]);
+  }
+  return std::isfinite(smallest) ? 0.05 * smallest : 0.0;
+}
+
+std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& state, double alert_distance) {
+  // Grains go in a uniform grid; walls are few and tested against every grain.
+  std::vector<std::uint32_t> grains;
+  std::vector<std::uint32_t> walls;
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    (model.is_grain(b) ? grains : walls).push_back(static_cast<std::uint32_t>(b));
+  }
+  const double margin = 0.5 * alert_distance;
+  std::vector<Aabb> boxes(grains.size());
+  for (std::size_t k = 0; k < grains.size(); ++k) {
+    const std::size_t b = grains[k];
+    const Vec3 half = Vec3::Constant(model.bounding_radius[b] + margin);
+    boxes[k] = {state.position[b] - half, state.position[b] + half};
+  }
+
+  std::vector<BodyPair> pairs;
+  if (!grains.empty()) {
+    // Cell size: twice the median bounding radius (plus the alert distance), so a typical grain
+    // spans at most 2 cells per axis; larger grains span more cells but stay few for bounded
+    // size ratios. The domain is capped to 2^20 cells per axis by growing the cell if needed.
+    std::vector<double> radii(grains.size());
+    for (std::size_t k = 0; k < grains.size(); ++k) radii[k] = model.bounding_radius[grains[k]];
+    std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2), radii.end());
+    Vec3 lower = Vec3::Constant(std::numeric_limits<double>::infinity());
+    Vec3 upper = -lower;
+    for (const Aabb& box : boxes) {
+      lower = lower.cwiseMin(box.lower);
+      upper = upper.cwiseMax(box.upper);
+    }
+    constexpr double max_cells = 1 << 20;
+    double cell = 2.0 * radii[radii.size() / 2] + alert_distance;
+    cell = std::max(cell, (upper - lower).maxCoeff() / max_cells);
+    if (!(cell > 0.0) || !std::isfinite(cell)) throw std::runtime_error("broad phase: non-finite grain positions");
+
+    auto cell_of = [&](const Vec3& p) -> Eigen::Vector3i {
+      return ((p - lower) / cell).array().floor().cast<int>().cwiseMax(0).cwiseMin(static_cast<int>(max_cells) - 1);
+    };
+    auto key_of = [](const Eigen::Vector3i& c) {
+      return (static_cast<std::uint64_t>(c.x()) << 42) | (static_cast<std::uint64_t>(c.y()) << 21) |
+             static_cast<std::uint64_t>(c.z());
+    };
+    struct Entry {
+      std::uint64_t cell_key;
+      std::uint32_t grain;  // index into grains
+      bool operator<(const Entry& o) const { return cell_key != o.cell_key ? cell_key < o.cell_key : grain < o.grain; }
+    };
+    std::vector<Entry> entries;
+    entries.reserve(grains.size() * 2);
+    for (std::size_t k = 0; k < grains.size(); ++k) {
+      const Eigen::Vector3i c0 = cell_of(boxes[k].lower);
+      const Eigen::Vector3i c1 = cell_of(boxes[k].upper);
+      for (int x = c0.x(); x <= c1.x(); ++x)
+        for (int y = c0.y(); y <= c1.y(); ++y)
+          for (int z = c0.z(); z <= c1.z(); ++z)
+            entries.push_back({key_of({x, y, z}), static_cast<std::uint32_t>(k)});
+    }
+    std::sort(entries.begin(), entries.end());
+
+    // Cell runs, then pairs inside each run in parallel; each pair is reported only by the cell
+    // holding the lower corner of the overlap of the two boxes, so never twice.
+    std::vector<std::size_t> run_start;
+    for (std::size_t e = 0; e < entries.size(); ++e) {
+      if (e == 0 || entries[e].cell_key != entries[e - 1].cell_key) run_start.push_back(e);
+    }
+    run_start.push_back(entries.size());
+    const std::ptrdiff_t run_count = static_cast<std::ptrdiff_t>(run_start.size()) - 1;
+#pragma omp parallel
+    {
+      std::vector<BodyPair> local;
+#pragma omp for schedule(dynamic, 64) nowait
+      for (std::ptrdiff_t r = 0; r < run_count; ++r) {
+        const std::size_t begin = run_start[static_cast<std::size_t>(r)];
+        const std::size_t end = run_start[static_cast<std::size_t>(r) + 1];
+        for (std::size_t i = begin; i < end; ++i) {
+          for (std::size_t j = i + 1; j < end; ++j) {
+            const Aabb& a = boxes[entries[i].grain];
+            const Aabb& b = boxes[entries[j].grain];
+            if (!overlap(a, b)) continue;
+            if (key_of(cell_of(a.lower.cwiseMax(b.lower))) != entries[i].cell_key) continue;
+            const std::uint32_t ga = grains[entries[i].grain];
+            const std::uint32_t gb = grains[entries[j].grain];
+            local.push_back({std::min(ga, gb), std::max(ga, gb)});
+          }
+        }
+      }
+#pragma omp critical(rubble_broad_phase)
+      pairs.insert(pairs.end(), local.begin(), local.end());
+    }
+  }
+
+  for (const std::uint32_t wall : walls) {
+    const Aabb box = wall_box(model, state, wall, margin);
+    for (std::size_t k = 0; k < grains.size(); ++k) {
+      if (overlap(box, boxes[k])) pairs.push_back({std::min(wall, grains[k]), std::max(wall, grains[k])});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());  // deterministic whatever the thread count
+  return pairs;
+}
+
+void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
+                  const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal) {
+  std::uint32_t a = pair.body_a;
+  std::uint32_t b = pair.body_b;
+  // Walls go first so the normal points from the wall into the grain.
+  if (model.is_grain(a) && !model.is_grain(b)) std::swap(a, b);
+  const ShapeKind kind_a = model.shape_kind[a];
+  const ShapeKind kind_b = model.shape_kind[b];
+  [[maybe_unused]] const Vec3* previous = memory.find(pair);
+  if (kind_a == ShapeKind::sphere && kind_b == ShapeKind::sphere) {
+    collide_sphere_sphere(model, state, a, b, alert_distance, contacts);
+  } else if (kind_a == ShapeKind::plane && kind_b == ShapeKind::sphere) {
+    collide_plane_sphere(model, state, a, b, alert_distance, contacts);
+  } else if (kind_a == ShapeKind::box && kind_b == ShapeKind::sphere) {
+    collide_box_sphere(model, state, a, b, alert_distance, contacts);
+  } else if (!model.is_grain(a) && !model.is_grain(b)) {
+    return;  // two walls never interact
+#if RUBBLE_HAS_POLYHEDRA
+  } else if (kind_a == ShapeKind::polyhedron && kind_b == ShapeKind::polyhedron) {
+    collide_polyhedron_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
+  } else if (kind_a == ShapeKind::sphere || kind_b == ShapeKind::sphere) {
+    collide_sphere_polyhedron(model, state, a, b, alert_distance, contacts);
+  } else if (kind_a == ShapeKind::plane) {
+    collide_plane_polyhedron(model, state, a, b, alert_distance, contacts);
+  } else if (kind_a == ShapeKind::box) {
+    collide_box_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
+#endif
+  } else {
+    (void)common_normal;
+    throw std::runtime_error("narrow phase: no contact routine for this pair of shapes");
+  }
+}
+
+ContactList detect_contacts(const Model& model, const State& state, const DetectionOptions& options,
+                            DetectionMemory& memory, DetectionStats* stats) {
+  const double alert = resolve_alert_distance(model, options);
+  auto start = Clock::now();
+  const std::vector<BodyPair> pairs = find_candidate_pairs(model, state, alert);
+  const double broad_seconds = seconds_since(start);
+
+  start = Clock::now();
+  // Each pair writes its own slot, so the concatenation below is in pair order for any thread count.
+  const std::ptrdiff_t pair_count = static_cast<std::ptrdiff_t>(pairs.size());
+  std::vector<ContactList> per_pair(pairs.size());
+  std::vector<Vec3> normals(pairs.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+#pragma omp parallel for schedule(dynamic, 32)
+  for (std::ptrdiff_t p = 0; p < pair_count; ++p) {
+    const auto k = static_cast<std::size_t>(p);
+    collide_pair(model, state, pairs[k], alert, memory, per_pair[k], normals[k]);
+  }
+  ContactList contacts;
+  DetectionMemory next;
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    contacts.insert(contacts.end(), per_pair[k].begin(), per_pair[k].end());
+    if (!per_pair[k].empty() && !std::isnan(normals[k].x())) {
+      next.pairs.push_back(pairs[k]);
+      next.common_normals.push_back(normals[k]);
+    }
+  }
+  std::stable_sort(contacts.begin(), contacts.end(), [](const Contact& x, const Contact& y) { return x.id < y.id; });
+  memory = std::move(next);
+  if (stats) {
+    stats->candidate_pairs = pairs.size();
+    stats->broad_phase_seconds = broad_seconds;
+    stats->narrow_phase_seconds = seconds_since(start);
+  }
+  return contacts;
+}
+
+void carry_impulses(const ContactList& previous, ContactList& current) {
+  auto old = previous.begin();
+  for (Contact& contact : current) {
+    while (old != previous.end() && old->id < contact.id) ++old;
+    if (old == previous.end()) break;
+    if (old->id == contact.id) {
+      // Same impulse in the world, expressed in the new frame.
+      contact.impulse = contact.frame.transpose() * (old->frame * old->impulse);
+    }
+  }
+}
+
+}  // namespace rubble

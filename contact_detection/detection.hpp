@@ -1,0 +1,69 @@
+#pragma once
+// Contact detection, stages 3 and 4 of the step: broad phase (which pairs may touch), narrow
+// phase (contact points, frames and gaps of each pair), then carrying last step's impulses to the
+// contacts that persist (warm start).
+#include <cstdint>
+#include <vector>
+
+#include "contact_detection/contact.hpp"
+#include "core/model.hpp"
+#include "core/state.hpp"
+
+namespace rubble {
+
+/// Settings of contact detection.
+struct DetectionOptions {
+  /// m: pairs whose gap is below this distance produce contact points, so that contacts about
+  /// to close within the step are known to the solver (LMGC90's alert distance). Zero picks
+  /// 5% of the smallest grain radius.
+  double alert_distance = 0.0;
+};
+
+/// A candidate pair from the broad phase, body_a < body_b.
+struct BodyPair {
+  std::uint32_t body_a = 0;  ///< lower body id
+  std::uint32_t body_b = 0;  ///< higher body id
+  auto operator<=>(const BodyPair&) const = default;
+};
+
+/// What one detection call did, for the step's report.
+struct DetectionStats {
+  std::size_t candidate_pairs = 0;  ///< pairs passed to the narrow phase
+  double broad_phase_seconds = 0;   ///< wall time of the broad phase
+  double narrow_phase_seconds = 0;  ///< wall time of the narrow phase
+};
+
+/// Remembered between steps for persistent pairs: the common-plane normal of polyhedron pairs
+/// (warm start of the common-plane iteration). Sorted by pair; part of what a checkpoint saves.
+struct DetectionMemory {
+  std::vector<BodyPair> pairs;         ///< sorted
+  std::vector<Vec3> common_normals;    ///< world frame, one per pair
+  /// The remembered normal for a pair, or nullptr.
+  const Vec3* find(const BodyPair& pair) const;
+};
+
+/// The alert distance actually used: options.alert_distance, or 5% of the smallest grain radius.
+double resolve_alert_distance(const Model& model, const DetectionOptions& options);
+
+/// Broad phase: every pair of bodies whose bounding volumes, inflated by the alert distance,
+/// overlap. Grains are binned in a uniform grid (cell size from the median grain size, large
+/// grains span several cells, each pair reported once by the cell owning the lower corner of the
+/// overlap of the two boxes), so the cost is O(N) for bounded size ratios; walls are tested
+/// against every grain. Sorted, so the result does not depend on the thread count.
+std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& state, double alert_distance);
+
+/// Narrow phase for one pair: appends the pair's contact points with gap < alert_distance.
+/// `memory` is last step's detection memory (read) and `common_normal` receives this step's
+/// common-plane normal for polyhedron pairs (unchanged otherwise).
+void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
+                  const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal);
+
+/// Stage 3 of the step: all contact points of the scene, sorted by id. Updates `memory`.
+ContactList detect_contacts(const Model& model, const State& state, const DetectionOptions& options,
+                            DetectionMemory& memory, DetectionStats* stats = nullptr);
+
+/// Stage 4 of the step (match_contacts): for each contact whose id was present last step, starts
+/// from last step's impulse, rotated from the old local frame to the new one. Both lists sorted.
+void carry_impulses(const ContactList& previous, ContactList& current);
+
+}  // namespace rubble

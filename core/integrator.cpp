@@ -1,0 +1,52 @@
+#include "core/integrator.hpp"
+
+namespace rubble {
+
+void compute_free_velocity(const Model& model, const State& state, std::span<const Vec3> force,
+                           std::span<const Vec3> torque, double time_step, BodyVelocities& free_velocity) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
+  free_velocity.linear.resize(static_cast<std::size_t>(n));
+  free_velocity.angular.resize(static_cast<std::size_t>(n));
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    const auto b = static_cast<std::size_t>(i);
+    if (model.is_fixed(b)) {
+      free_velocity.linear[b] = Vec3::Zero();
+      free_velocity.angular[b] = Vec3::Zero();
+      continue;
+    }
+    free_velocity.linear[b] = state.velocity[b] + time_step * model.inverse_mass[b] * force[b];
+    // Rotation in the body frame, where the inertia is diagonal: I dw/dt = tau - w x (I w).
+    const Mat3 rotation = state.orientation[b].toRotationMatrix();
+    const Vec3 omega_body = rotation.transpose() * state.angular_velocity[b];
+    Vec3 torque_body = torque.empty() ? Vec3::Zero() : Vec3(rotation.transpose() * torque[b]);
+    if (model.shape_kind[b] != ShapeKind::sphere) {
+      torque_body -= omega_body.cross(model.principal_inertia[b].cwiseProduct(omega_body));
+    }
+    const Vec3 omega_free_body = omega_body + time_step * model.inverse_inertia[b].cwiseProduct(torque_body);
+    free_velocity.angular[b] = rotation * omega_free_body;
+  }
+}
+
+void update_positions(const Model& model, const IntegratorOptions& options, const BodyVelocities& velocity,
+                      State& state) {
+  const double h = options.time_step;
+  const double theta = options.theta;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    const auto b = static_cast<std::size_t>(i);
+    if (model.is_fixed(b)) continue;
+    const Vec3 v_theta = (1.0 - theta) * state.velocity[b] + theta * velocity.linear[b];
+    const Vec3 w_theta = (1.0 - theta) * state.angular_velocity[b] + theta * velocity.angular[b];
+    state.position[b] += h * v_theta;
+    // Exponential map keeps the orientation on the unit sphere; renormalise against round-off.
+    state.orientation[b] = (quaternion_exp(h * w_theta) * state.orientation[b]).normalized();
+    state.velocity[b] = velocity.linear[b];
+    state.angular_velocity[b] = velocity.angular[b];
+  }
+  state.time += h;
+  state.step += 1;
+}
+
+}  // namespace rubble

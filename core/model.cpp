@@ -1,0 +1,64 @@
+#include "core/model.hpp"
+
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+namespace rubble {
+namespace {
+
+int push_body(Model& model, ShapeKind kind, int shape_index, int material, double mass, const Vec3& inertia,
+              double bounding_radius, double volume) {
+  model.shape_kind.push_back(kind);
+  model.shape_index.push_back(shape_index);
+  model.material.push_back(material);
+  model.mass.push_back(mass);
+  model.inverse_mass.push_back(mass > 0.0 ? 1.0 / mass : 0.0);
+  model.principal_inertia.push_back(inertia);
+  model.inverse_inertia.push_back(mass > 0.0 ? Vec3(inertia.cwiseInverse()) : Vec3::Zero());
+  model.bounding_radius.push_back(bounding_radius);
+  model.volume.push_back(volume);
+  return static_cast<int>(model.shape_kind.size()) - 1;
+}
+
+double density_of(const Model& model, int material) {
+  if (material < 0 || material >= static_cast<int>(model.materials.size())) {
+    throw std::invalid_argument("material id out of range");
+  }
+  return model.materials[static_cast<std::size_t>(material)].density;
+}
+
+}  // namespace
+
+int add_sphere(Model& model, double radius, int material) {
+  const double volume = 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
+  const double mass = density_of(model, material) * volume;
+  const double inertia = 0.4 * mass * radius * radius;  // solid ball: I = 2/5 m r^2
+  model.spheres.push_back(Sphere{radius});
+  return push_body(model, ShapeKind::sphere, static_cast<int>(model.spheres.size()) - 1, material, mass,
+                   Vec3::Constant(inertia), radius, volume);
+}
+
+int add_plane_wall(Model& model, const Vec3& normal, int material) {
+  model.planes.push_back(Plane{normal.normalized()});
+  return push_body(model, ShapeKind::plane, static_cast<int>(model.planes.size()) - 1, material, 0.0, Vec3::Zero(),
+                   std::numeric_limits<double>::infinity(), 0.0);
+}
+
+int add_box_wall(Model& model, const Vec3& half_extents, int material) {
+  model.boxes.push_back(Box{half_extents});
+  return push_body(model, ShapeKind::box, static_cast<int>(model.boxes.size()) - 1, material, 0.0, Vec3::Zero(),
+                   half_extents.norm(), 0.0);
+}
+
+int add_polyhedron(Model& model, ConvexPolyhedron shape, double volume, const Vec3& principal_inertia_per_density,
+                   int material) {
+  const double density = density_of(model, material);
+  double bounding_radius = 0.0;
+  for (const Vec3& v : shape.vertices) bounding_radius = std::max(bounding_radius, v.norm());
+  model.polyhedra.push_back(std::move(shape));
+  return push_body(model, ShapeKind::polyhedron, static_cast<int>(model.polyhedra.size()) - 1, material,
+                   density * volume, density * principal_inertia_per_density, bounding_radius, volume);
+}
+
+}  // namespace rubble

@@ -1,0 +1,97 @@
+#pragma once
+// The model: everything about a scene that does not change during a run (shapes, masses,
+// inertia, materials, the contact-law table). Built once, then shared read-only by every stage.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.hpp"
+#include "core/shapes.hpp"
+
+namespace rubble {
+
+/// A bulk material: the density that turns a shape's volume into mass.
+struct Material {
+  std::string name;     ///< as written in the scene file
+  double density = 0;   ///< kg/m^3
+};
+
+/// The frictional contact law between two materials (seed 001 eqs. 1-2 plus Newton restitution).
+struct ContactLaw {
+  double friction_coefficient = 0.0;  ///< Coulomb's mu >= 0
+  double normal_restitution = 0.0;    ///< Newton's e_n in [0, 1]
+};
+
+/// Contact laws by material pair, symmetric: law(a, b) == law(b, a).
+struct ContactLawTable {
+  int material_count = 0;         ///< number of materials
+  std::vector<ContactLaw> laws;   ///< material_count^2 entries, row-major
+
+  /// Resizes to n materials, every pair getting `fallback`.
+  void reset(int n, const ContactLaw& fallback) {
+    material_count = n;
+    laws.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), fallback);
+  }
+  /// Sets the law of the pair (a, b) and (b, a).
+  void set(int a, int b, const ContactLaw& law) {
+    laws[static_cast<std::size_t>(a * material_count + b)] = law;
+    laws[static_cast<std::size_t>(b * material_count + a)] = law;
+  }
+  /// The law between materials a and b.
+  const ContactLaw& get(int a, int b) const { return laws[static_cast<std::size_t>(a * material_count + b)]; }
+};
+
+/// The immutable part of a scene. Per-body data is stored as structure of arrays, indexed by
+/// body id; walls are bodies with zero inverse mass and inertia.
+struct Model {
+  // --- per body ---
+  std::vector<ShapeKind> shape_kind;     ///< which table shape_index points into
+  std::vector<int> shape_index;          ///< index into spheres / polyhedra / planes / boxes
+  std::vector<int> material;             ///< index into materials
+  std::vector<double> mass;              ///< kg (0 for walls, meaning infinite)
+  std::vector<double> inverse_mass;      ///< 1/kg (0 for walls)
+  std::vector<Vec3> principal_inertia;   ///< kg m^2, body frame (0 for walls)
+  std::vector<Vec3> inverse_inertia;     ///< 1/(kg m^2), body frame (0 for walls)
+  std::vector<double> bounding_radius;   ///< m, radius of the sphere around the body origin (inf for planes)
+  std::vector<double> volume;            ///< m^3 (0 for walls)
+
+  // --- shape tables ---
+  std::vector<Sphere> spheres;              ///< sphere shapes
+  std::vector<ConvexPolyhedron> polyhedra;  ///< convex polyhedron shapes
+  std::vector<Plane> planes;                ///< plane walls
+  std::vector<Box> boxes;                   ///< box walls
+
+  // --- materials and contact laws ---
+  std::vector<Material> materials;  ///< by material id
+  ContactLawTable contact_laws;     ///< by material pair
+
+  /// Number of bodies, walls included.
+  std::size_t body_count() const { return shape_kind.size(); }
+  /// True for walls: bodies that never move (infinite mass).
+  bool is_fixed(std::size_t body) const { return inverse_mass[body] == 0.0; }
+  /// True for grains (sphere or polyhedron).
+  bool is_grain(std::size_t body) const {
+    return shape_kind[body] == ShapeKind::sphere || shape_kind[body] == ShapeKind::polyhedron;
+  }
+  /// Radius of a sphere body (only valid when shape_kind[body] == sphere).
+  double sphere_radius(std::size_t body) const { return spheres[static_cast<std::size_t>(shape_index[body])].radius; }
+};
+
+/// Adds a sphere grain of the given radius and material to the model; returns its body id.
+int add_sphere(Model& model, double radius, int material);
+/// Adds a fixed plane wall with the given body-frame normal; returns its body id.
+int add_plane_wall(Model& model, const Vec3& normal, int material);
+/// Adds a fixed box wall with the given half extents; returns its body id.
+int add_box_wall(Model& model, const Vec3& half_extents, int material);
+/// Adds a grain with the given convex polyhedron shape (already in its principal body frame),
+/// mass properties given by the caller; returns its body id.
+int add_polyhedron(Model& model, ConvexPolyhedron shape, double volume, const Vec3& principal_inertia_per_density,
+                   int material);
+
+/// World-frame inverse inertia tensor R diag(I^-1) R^T of a body with the given orientation.
+inline Mat3 world_inverse_inertia(const Model& model, std::size_t body, const Quat& orientation) {
+  const Mat3 rotation = orientation.toRotationMatrix();
+  return rotation * model.inverse_inertia[body].asDiagonal() * rotation.transpose();
+}
+
+}  // namespace rubble

@@ -1,0 +1,32 @@
+#pragma once
+// The Coulomb cone and the natural-map residual of the Signorini-Coulomb law
+// (seed 001 eqs. 1-2; De Saxcé's form as in shared/fclib/README.md).
+// Local vectors are ordered (normal, t, s); r_n >= 0 pushes the bodies apart.
+#include <cmath>
+
+#include "core/math.hpp"
+
+namespace rubble {
+
+/// Euclidean projection of x onto the cone K_mu = {||x_T|| <= mu x_n}.
+inline Vec3 project_onto_coulomb_cone(const Vec3& x, double mu) {
+  const double normal = x.x();
+  const double tangential = std::hypot(x.y(), x.z());
+  if (tangential <= mu * normal) return x;                          // inside K
+  if (mu * tangential <= -normal) return Vec3::Zero();              // inside the polar cone -K*
+  const double projected_normal = (normal + mu * tangential) / (1.0 + mu * mu);
+  const double scale = mu * projected_normal / tangential;
+  return Vec3(projected_normal, scale * x.y(), scale * x.z());
+}
+
+/// Natural map of one contact: F = r - P_K(r - u_hat), u_hat = u + [mu ||u_T||, 0, 0] (De Saxcé).
+/// F = 0 exactly when (r, u) satisfies Signorini + Coulomb. `rho` scales r first (F is then in
+/// velocity units when rho = W_nn, the contact's normal compliance).
+inline Vec3 natural_map(const Vec3& impulse, const Vec3& velocity, double mu, double rho = 1.0) {
+  const Vec3 r = rho * impulse;
+  Vec3 u_hat = velocity;
+  u_hat.x() += mu * std::hypot(velocity.y(), velocity.z());
+  return r - project_onto_coulomb_cone(r - u_hat, mu);
+}
+
+}  // namespace rubble

@@ -1,0 +1,59 @@
+#pragma once
+// The frictional contact problem as plain data (W, q, mu), as in FCLib and Siconos numerics:
+// find r, u with u = W r + q and Signorini-Coulomb per contact. A file-backed problem is solved
+// by the same sweep and local solver as the simulation's contacts.
+#include <cstdint>
+#include <vector>
+
+#include "core/math.hpp"
+#include "nlgs_solver/nlgs.hpp"
+
+namespace rubble {
+
+/// W in compressed sparse row form (3 rows per contact, ordered normal, t, s).
+struct SparseMatrix {
+  int rows = 0;                       ///< number of rows (3 * contacts)
+  int columns = 0;                    ///< number of columns (3 * contacts)
+  std::vector<int> row_start;         ///< rows + 1 offsets into column/value
+  std::vector<int> column;            ///< column index of each stored value
+  std::vector<double> value;          ///< stored values
+};
+
+/// A local frictional contact problem: u = W r + q, per contact K_mu ∋ r ⊥ û ∈ K_mu*.
+struct LocalProblem {
+  SparseMatrix W;                     ///< Delassus operator
+  std::vector<double> q;              ///< 3 * contacts
+  std::vector<double> mu;             ///< friction coefficient per contact
+  /// Number of contacts.
+  std::size_t contact_count() const { return mu.size(); }
+};
+
+/// How to order the contacts within a sweep.
+enum class SweepOrder { as_stored, shuffled };
+
+/// Options of the file-backed solve (the simulation's SolverOptions plus an order).
+struct LocalProblemOptions {
+  double tolerance = 1e-8;            ///< on the FCLib error ||F||/||q|| (rho = 1)
+  int max_iterations = 10000;         ///< sweeps at most
+  double relaxation = 1.0;            ///< omega
+  SweepOrder order = SweepOrder::as_stored;  ///< contact order within a sweep
+  std::uint64_t seed = 1;             ///< for SweepOrder::shuffled (one shuffle, reused every sweep)
+};
+
+/// Result of a file-backed solve.
+struct LocalProblemSolution {
+  std::vector<double> r;              ///< 3 * contacts
+  std::vector<double> u;              ///< 3 * contacts
+  int iterations = 0;                 ///< sweeps done
+  double error = 0.0;                 ///< ||F(r)|| / ||q||, natural map with rho = 1 (FCLib measure)
+  bool converged = false;             ///< error <= tolerance
+};
+
+/// The FCLib error measure of (r, u) for the problem (shared/fclib/README.md).
+double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
+
+/// Solves the problem by NLGS from r = 0 with the simulation's sweep and local solver; the error
+/// is evaluated after every sweep (one W r product).
+LocalProblemSolution solve_local_problem(const LocalProblem& problem, const LocalProblemOptions& options);
+
+}  // namespace rubble

@@ -1,0 +1,126 @@
+#include "nlgs_solver/local_solver.hpp"
+
+#include <Eigen/LU>
+#include <cmath>
+#include <numbers>
+
+namespace rubble {
+namespace {
+
+using Vec2 = Eigen::Vector2d;
+
+/// The sliding candidate for a sliding direction d (unit, tangent plane): r_T = -mu r_n d and
+/// r_n chosen so that u_n = 0. Returns false when no positive r_n exists for this d.
+struct SlidingCandidate {
+  Vec3 impulse;
+  Vec2 tangential_velocity;
+};
+
+bool sliding_candidate(const Mat3& W, const Vec3& u_free, double mu, const Vec2& d, SlidingCandidate& out) {
+  // u_n = r_n (W_nn - mu W_nT d) + u_free_n = 0.
+  const double normal_compliance = W(0, 0) - mu * (W(0, 1) * d.x() + W(0, 2) * d.y());
+  if (!(normal_compliance > 0.0)) return false;
+  const double r_n = -u_free.x() / normal_compliance;
+  if (!(r_n >= 0.0)) return false;
+  out.impulse = Vec3(r_n, -mu * r_n * d.x(), -mu * r_n * d.y());
+  const Vec3 u = W * out.impulse + u_free;
+  out.tangential_velocity = Vec2(u.y(), u.z());
+  return true;
+}
+
+/// Misalignment of u_T with d: zero when u_T = s d (s >= 0 checked separately).
+double misalignment(const SlidingCandidate& c, const Vec2& d) {
+  return c.tangential_velocity.x() * d.y() - c.tangential_velocity.y() * d.x();
+}
+
+}  // namespace
+
+LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
+  LocalSolution solution;
+  if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open
+
+  // Sticking: u = 0.
+  const Vec3 stick = W.partialPivLu().solve(-u_free);
+  const double stick_tangential = std::hypot(stick.y(), stick.z());
+  if (stick.x() > 0.0 && stick_tangential <= mu * stick.x()) {
+    solution.impulse = stick;
+    solution.regime = LocalSolution::Regime::sticking;
+    return solution;
+  }
+  if (mu == 0.0) {
+    // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
+    solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
+    solution.regime = LocalSolution::Regime::sliding;
+    return solution;
+  }
+
+  // Sliding: friction opposes the slip, so start from the direction opposite to the sticking
+  // impulse's tangential part (or the free slip direction).
+  Vec2 d = stick_tangential > 0.0 ? Vec2(-stick.y() / stick_tangential, -stick.z() / stick_tangential)
+                                  : Vec2(u_free.y(), u_free.z()).normalized();
+  if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
+  SlidingCandidate c;
+  for (int iteration = 0; iteration < 50; ++iteration) {
+    if (!sliding_candidate(W, u_free, mu, d, c)) break;
+    const double speed = c.tangential_velocity.norm();
+    if (speed == 0.0) break;
+    const Vec2 next = c.tangential_velocity / speed;
+    if ((next - d).norm() < 1e-13) {
+      solution.impulse = c.impulse;
+      solution.regime = LocalSolution::Regime::sliding;
+      return solution;
+    }
+    d = next;
+  }
+
+  // Fallback: scan the angle of d for a sign change of the misalignment with u_T . d > 0,
+  // then bisect (robust for any positive definite block).
+  constexpr int samples = 72;
+  double best_angle = 0.0;
+  bool found = false;
+  double previous_angle = 0.0;
+  double previous_value = 0.0;
+  bool previous_valid = false;
+  for (int k = 0; k <= samples && !found; ++k) {
+    const double angle = 2.0 * std::numbers::pi * k / samples;
+    const Vec2 dk(std::cos(angle), std::sin(angle));
+    if (!sliding_candidate(W, u_free, mu, dk, c) || c.tangential_velocity.dot(dk) < 0.0) {
+      previous_valid = false;
+      continue;
+    }
+    const double value = misalignment(c, dk);
+    if (previous_valid && (value == 0.0 || (value > 0.0) != (previous_value > 0.0))) {
+      double lo = previous_angle, hi = angle, f_lo = previous_value;
+      for (int bisection = 0; bisection < 60; ++bisection) {
+        const double mid = 0.5 * (lo + hi);
+        const Vec2 dm(std::cos(mid), std::sin(mid));
+        if (!sliding_candidate(W, u_free, mu, dm, c)) break;
+        const double f_mid = misalignment(c, dm);
+        if ((f_mid > 0.0) == (f_lo > 0.0)) {
+          lo = mid;
+          f_lo = f_mid;
+        } else {
+          hi = mid;
+        }
+      }
+      best_angle = 0.5 * (lo + hi);
+      found = true;
+    }
+    previous_angle = angle;
+    previous_value = value;
+    previous_valid = true;
+  }
+  const Vec2 d_best(std::cos(best_angle), std::sin(best_angle));
+  if (found && sliding_candidate(W, u_free, mu, d_best, c)) {
+    solution.impulse = c.impulse;
+  } else {
+    // Degenerate block: fall back to the projection of the sticking impulse onto the cone.
+    const double r_n = std::max(stick.x(), 0.0);
+    const double scale = stick_tangential > 0.0 ? mu * r_n / stick_tangential : 0.0;
+    solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
+  }
+  solution.regime = LocalSolution::Regime::sliding;
+  return solution;
+}
+
+}  // namespace rubble

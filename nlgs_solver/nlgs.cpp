@@ -1,0 +1,170 @@
+#include "nlgs_solver/nlgs.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+#include "nlgs_solver/coulomb.hpp"
+#include "nlgs_solver/sweep.hpp"
+
+namespace rubble {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// The simulation's contact problem: W = H^T M^-1 H is never assembled; u_k is read off the two
+/// bodies' current velocities and an impulse change is applied to them at once.
+struct BodyCoupledProblem {
+  const Model& model;
+  ContactList& contacts;
+  BodyVelocities& velocity;
+  const std::vector<Mat3>& inverse_inertia_world;
+
+  std::size_t size() const { return contacts.size(); }
+  const Mat3& delassus(std::size_t k) const { return contacts[k].delassus; }
+  double friction_coefficient(std::size_t k) const { return contacts[k].friction_coefficient; }
+  Vec3& impulse(std::size_t k) { return contacts[k].impulse; }
+
+  /// u = R^T (v_b + w_b x arm_b - v_a - w_a x arm_a) - b e_n: the target velocity b is folded in,
+  /// so the law reads 0 <= r_n _|_ u_n >= 0.
+  Vec3 local_velocity(std::size_t k) const {
+    const Contact& c = contacts[k];
+    const std::size_t a = c.id.body_a, b = c.id.body_b;
+    const Vec3 relative = velocity.linear[b] + velocity.angular[b].cross(c.arm_b) - velocity.linear[a] -
+                          velocity.angular[a].cross(c.arm_a);
+    Vec3 u = c.frame.transpose() * relative;
+    u.x() -= c.normal_velocity_target;
+    return u;
+  }
+
+  void apply_impulse_change(std::size_t k, const Vec3& delta) {
+    const Contact& c = contacts[k];
+    const std::size_t a = c.id.body_a, b = c.id.body_b;
+    const Vec3 p = c.frame * delta;  // world impulse on b; -p on a
+    velocity.linear[b] += model.inverse_mass[b] * p;
+    velocity.angular[b] += inverse_inertia_world[b] * c.arm_b.cross(p);
+    velocity.linear[a] -= model.inverse_mass[a] * p;
+    velocity.angular[a] -= inverse_inertia_world[a] * c.arm_a.cross(p);
+  }
+};
+
+/// Normal velocity target b of the unilateral condition 0 <= r_n _|_ U_n - b >= 0.
+/// - Open contact (the free motion keeps the gap open at the end of the step): b is the velocity
+///   that would just close the gap, g + h((1 - theta) U_n^- + theta U_n) = 0, so a contact pushed
+///   by others still cannot cross it.
+/// - Closing or closed contact (LMGC90's predicted-gap activation, g_pred <= 0): Newton's impact
+///   law U_n >= -e_n U_n^- (seed 001 sec. 2.1), plus, when already interpenetrated, a separation
+///   velocity removing a fraction of the overlap per step (capped).
+double normal_velocity_target(const Contact& c, double free_normal_velocity, const IntegratorOptions& integrator,
+                              const SolverOptions& options) {
+  const double h = integrator.time_step;
+  const double theta = integrator.theta;
+  const double before = c.normal_velocity_before;
+  const double predicted_gap = c.gap + h * ((1.0 - theta) * before + theta * free_normal_velocity);
+  if (predicted_gap > 0.0) return -(c.gap + h * (1.0 - theta) * before) / (h * theta);
+  double target = c.normal_restitution * std::max(-before, 0.0);
+  if (c.gap < 0.0 && options.penetration_correction > 0.0) {
+    target = std::max(target, std::min(options.penetration_correction * (-c.gap) / h, options.max_correction_velocity));
+  }
+  return target;
+}
+
+std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state) {
+  std::vector<Mat3> result(model.body_count());
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    const auto b = static_cast<std::size_t>(i);
+    result[b] = world_inverse_inertia(model, b, state.orientation[b]);
+  }
+  return result;
+}
+
+/// K = m^-1 I - [arm]x I^-1 [arm]x: the point's velocity change per unit impulse at that point.
+Mat3 point_compliance(double inverse_mass, const Mat3& inverse_inertia, const Vec3& arm) {
+  const Mat3 cross = skew(arm);
+  return inverse_mass * Mat3::Identity() - cross * inverse_inertia * cross;
+}
+
+}  // namespace
+
+void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
+                      const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts) {
+  const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(contacts.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    Contact& c = contacts[static_cast<std::size_t>(i)];
+    const std::size_t a = c.id.body_a, b = c.id.body_b;
+    c.arm_a = c.point - state.position[a];
+    c.arm_b = c.point - state.position[b];
+    const Mat3 compliance = point_compliance(model.inverse_mass[a], inverse_inertia[a], c.arm_a) +
+                            point_compliance(model.inverse_mass[b], inverse_inertia[b], c.arm_b);
+    c.delassus = c.frame.transpose() * compliance * c.frame;
+    const ContactLaw& law = model.contact_laws.get(model.material[a], model.material[b]);
+    c.friction_coefficient = law.friction_coefficient;
+    c.normal_restitution = law.normal_restitution;
+    const Vec3 normal = c.frame.col(0);
+    c.normal_velocity_before = normal.dot(state.velocity[b] + state.angular_velocity[b].cross(c.arm_b) -
+                                          state.velocity[a] - state.angular_velocity[a].cross(c.arm_a));
+    const double free_normal = normal.dot(free_velocity.linear[b] + free_velocity.angular[b].cross(c.arm_b) -
+                                          free_velocity.linear[a] - free_velocity.angular[a].cross(c.arm_a));
+    c.normal_velocity_target = normal_velocity_target(c, free_normal, integrator, options);
+    if (!options.warm_start) c.impulse = Vec3::Zero();
+  }
+}
+
+SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
+                           ContactList& contacts, BodyVelocities& velocity) {
+  SolverStats stats;
+  const auto start = Clock::now();
+  const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
+  BodyCoupledProblem problem{model, contacts, velocity, inverse_inertia};
+
+  // ||q||: the local velocities with no contact impulse (free velocity minus target).
+  double free_norm_squared = 0.0;
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    free_norm_squared += problem.local_velocity(k).squaredNorm();
+  }
+  // Warm start: the velocities must include the starting impulses.
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    Vec3& r = contacts[k].impulse;
+    r = project_onto_coulomb_cone(r, contacts[k].friction_coefficient);
+    if (r != Vec3::Zero()) problem.apply_impulse_change(k, r);
+  }
+  const double q_norm = std::sqrt(free_norm_squared);
+  const double scale = q_norm > 0.0 ? 1.0 / q_norm : 1.0;
+
+  std::vector<std::size_t> order(contacts.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  if (!contacts.empty()) {
+    for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
+      const SweepResult sweep = nlgs_sweep(problem, order, options.relaxation);
+      if (std::sqrt(sweep.residual_squared) * scale <= options.tolerance) {
+        stats.converged = true;
+        break;
+      }
+    }
+    stats.iterations = std::min(stats.iterations, options.max_iterations);
+  } else {
+    stats.converged = true;
+  }
+
+  // Final residual on the end-of-step velocities (one pass, no local solves), and statuses.
+  double residual_squared = 0.0;
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    Contact& c = contacts[k];
+    residual_squared += natural_map(c.impulse, problem.local_velocity(k), c.friction_coefficient, c.delassus(0, 0))
+                            .squaredNorm();
+    const double tangential = std::hypot(c.impulse.y(), c.impulse.z());
+    if (c.impulse.x() > 0.0) ++stats.active_contacts;
+    c.status = c.impulse.x() <= 0.0 ? ContactStatus::open
+               : tangential >= c.friction_coefficient * c.impulse.x() * (1.0 - 1e-9) ? ContactStatus::sliding
+                                                                                     : ContactStatus::sticking;
+  }
+  stats.residual = std::sqrt(residual_squared) * scale;
+  stats.sweep_seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return stats;
+}
+
+}  // namespace rubble

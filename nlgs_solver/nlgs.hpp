@@ -1,0 +1,49 @@
+#pragma once
+// Stage 5 of the step: the frictional contact problem of the active contacts, solved by
+// nonlinear Gauss-Seidel (NLGS, seed 001 section 2.1): contact after contact, the 3x3 local
+// problem is solved exactly with the other contacts' impulses frozen, and the two bodies'
+// velocities are updated at once, so no global matrix is assembled.
+#include <cstdint>
+
+#include "contact_detection/contact.hpp"
+#include "core/integrator.hpp"
+#include "core/model.hpp"
+#include "core/state.hpp"
+
+namespace rubble {
+
+/// Settings of the NLGS solver.
+struct SolverOptions {
+  double tolerance = 1e-4;       ///< stop when the sweep residual (see nlgs_solver/README.md) is below this
+  int max_iterations = 1000;     ///< sweeps at most
+  double relaxation = 1.0;       ///< omega in (0, 2): r <- omega r_local + (1 - omega) r_old
+  bool warm_start = true;        ///< start from last step's impulses of persistent contacts
+  /// Fraction of an existing interpenetration removed per step through the normal target
+  /// velocity (0 disables; Baumgarte-like, seed 002).
+  double penetration_correction = 0.2;
+  /// m/s: cap on the separation velocity the correction may ask for (so overlaps are undone
+  /// gently instead of ejecting grains).
+  double max_correction_velocity = 1.0;
+};
+
+/// What one solve did, for the step's report.
+struct SolverStats {
+  int iterations = 0;          ///< sweeps done
+  double residual = 0.0;       ///< natural-map residual ||F|| / ||q|| at exit (scaled, see README)
+  bool converged = false;      ///< residual <= tolerance within max_iterations
+  std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
+  double prepare_seconds = 0;  ///< wall time of the preparation (Delassus blocks, targets)
+  double sweep_seconds = 0;    ///< wall time of the sweeps
+};
+
+/// Fills each contact's arms, Delassus block, law and normal target velocity from the model, the
+/// state at the start of the step and the free velocities (LMGC90's "prep_nlgs").
+void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
+                      const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts);
+
+/// Solves for the contact impulses and updates `velocity` (which holds the free velocity on
+/// entry and v_{n+1} = v_free + M^-1 H r on exit). Contacts hold warm-start impulses on entry.
+SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
+                           ContactList& contacts, BodyVelocities& velocity);
+
+}  // namespace rubble

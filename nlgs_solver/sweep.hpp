@@ -1,0 +1,46 @@
+#pragma once
+// One nonlinear Gauss-Seidel sweep, shared by the simulation (W implicit through the bodies'
+// velocities) and by file-backed problems (W explicit, e.g. FCLib). A Problem provides:
+//   std::size_t size() const;                     number of contacts
+//   Vec3 local_velocity(std::size_t k) const;     u_k = (W r + q)_k for the current impulses
+//   const Mat3& delassus(std::size_t k) const;    W_kk
+//   double friction_coefficient(std::size_t k) const;
+//   Vec3& impulse(std::size_t k);                 r_k
+//   void apply_impulse_change(std::size_t k, const Vec3& delta);  keeps later u_j consistent
+#include <cmath>
+#include <span>
+
+#include "nlgs_solver/coulomb.hpp"
+#include "nlgs_solver/local_solver.hpp"
+
+namespace rubble {
+
+/// Sums over one sweep, for the convergence test.
+struct SweepResult {
+  double residual_squared = 0.0;  ///< sum over contacts of ||F_k||^2 (natural map, velocity units)
+};
+
+/// Sweeps the contacts in `order`: each local problem is solved exactly with the others frozen
+/// (Jean 1999), relaxed by omega. The natural map of contact k is taken just before its update,
+/// on the current iterate, so the convergence test costs no extra pass over the contacts.
+template <class Problem>
+SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, double relaxation) {
+  SweepResult result;
+  for (const std::size_t k : order) {
+    const Mat3& W = problem.delassus(k);
+    const double mu = problem.friction_coefficient(k);
+    Vec3& r = problem.impulse(k);
+    const Vec3 u = problem.local_velocity(k);
+    // rho = W_nn puts the residual in velocity units, independent of the mass scale.
+    result.residual_squared += natural_map(r, u, mu, W(0, 0)).squaredNorm();
+    const Vec3 free_velocity = u - W * r;  // what u would be without this contact's impulse
+    Vec3 next = solve_local_contact(W, free_velocity, mu).impulse;
+    if (relaxation != 1.0) next = relaxation * next + (1.0 - relaxation) * r;
+    const Vec3 delta = next - r;
+    r = next;
+    problem.apply_impulse_change(k, delta);
+  }
+  return result;
+}
+
+}  // namespace rubble

@@ -1,0 +1,37 @@
+#pragma once
+// A scene: the model, the initial state and how to run it. What a scene file describes.
+#include <cstdint>
+#include <string>
+
+#include "core/model.hpp"
+#include "core/state.hpp"
+#include "simulation/step.hpp"
+
+namespace rubble {
+
+/// Where and how often the run writes its results.
+struct OutputOptions {
+  std::string directory = "rubble-output";  ///< output folder (created if missing)
+  std::int64_t snapshot_every_steps = 0;     ///< write a state snapshot every N steps (0: use snapshot_interval)
+  double snapshot_interval = 0.0;            ///< s of simulated time between snapshots (0: 100 snapshots per run)
+  double progress_interval = 2.0;            ///< s of wall time between progress lines
+  bool write_vtk = false;                    ///< also write a ParaView series
+};
+
+/// How long to run and what to write, besides the step's own options.
+struct RunOptions {
+  StepOptions step{};            ///< integrator, detection, solver, gravity
+  double end_time = 1.0;         ///< s of simulated time
+  OutputOptions output{};        ///< output folder and cadence
+  std::uint64_t seed = 1;        ///< seed of every random generator the scene uses
+};
+
+/// A complete scene: immutable model, initial state, run options.
+struct Scene {
+  std::string name = "scene";  ///< from the file name or the scene's `name` key
+  Model model;                 ///< shapes, masses, materials, contact laws
+  State state;                 ///< initial positions and velocities
+  RunOptions run;              ///< time stepping, solver, output
+};
+
+}  // namespace rubble

@@ -1,0 +1,112 @@
+#include "simulation/step.hpp"
+
+#include <chrono>
+
+namespace rubble {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Times a stage into the report.
+class StageTimer {
+ public:
+  explicit StageTimer(StepReport& report) : report_(report), start_(Clock::now()) {}
+  void restart() { start_ = Clock::now(); }
+  void finish(Stage stage) {
+    const auto now = Clock::now();
+    report_.stage_seconds[static_cast<std::size_t>(stage)] += std::chrono::duration<double>(now - start_).count();
+    start_ = now;
+  }
+
+ private:
+  StepReport& report_;
+  Clock::time_point start_;
+};
+
+/// Stage 1: external forces on every body at the start of the step (gravity; walls get none).
+void compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
+                             std::vector<Vec3>& force) {
+  force.assign(model.body_count(), Vec3::Zero());
+  switch (gravity.kind) {
+    case GravitySettings::Kind::none:
+      return;
+    case GravitySettings::Kind::uniform:
+      for (std::size_t b = 0; b < model.body_count(); ++b) force[b] = model.mass[b] * gravity.acceleration;
+      return;
+    case GravitySettings::Kind::self: {
+      // Point masses at the grains' centres of mass (seed 001 sec. 2.3).
+      std::vector<std::size_t> grains;
+      for (std::size_t b = 0; b < model.body_count(); ++b) {
+        if (!model.is_fixed(b)) grains.push_back(b);
+      }
+      std::vector<double> positions(3 * grains.size()), masses(grains.size());
+      for (std::size_t k = 0; k < grains.size(); ++k) {
+        for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
+        masses[k] = model.mass[grains[k]];
+      }
+      std::vector<double> acceleration(3 * grains.size());
+      gravity::compute_field(gravity.self_gravity, positions, masses, acceleration, {});
+      for (std::size_t k = 0; k < grains.size(); ++k) {
+        force[grains[k]] = masses[k] * Vec3(acceleration[3 * k], acceleration[3 * k + 1], acceleration[3 * k + 2]);
+      }
+      return;
+    }
+  }
+}
+
+}  // namespace
+
+std::string_view stage_name(Stage stage) {
+  switch (stage) {
+    case Stage::external_forces: return "external_forces";
+    case Stage::free_velocity: return "free_velocity";
+    case Stage::broad_phase: return "broad_phase";
+    case Stage::narrow_phase: return "narrow_phase";
+    case Stage::match_contacts: return "match_contacts";
+    case Stage::solver_preparation: return "solver_preparation";
+    case Stage::nlgs_sweeps: return "nlgs_sweeps";
+    case Stage::update_positions: return "update_positions";
+    case Stage::count: break;
+  }
+  return "unknown";
+}
+
+StepReport step(const Model& model, State& state, StepWorkspace& workspace, const StepOptions& options) {
+  StepReport report;
+  StageTimer timer(report);
+
+  // 1. external_forces: gravity (uniform or self-gravity) at the start of the step.
+  compute_external_forces(model, state, options.gravity, workspace.force);
+  timer.finish(Stage::external_forces);
+
+  // 2. free_velocity: v_free = v + h M^-1 f (+ gyroscopic torque).
+  compute_free_velocity(model, state, workspace.force, {}, options.integrator.time_step, workspace.velocity);
+  timer.finish(Stage::free_velocity);
+
+  // 3. detect: broad phase, narrow phase -> contact points, frames, gaps.
+  DetectionStats detection;
+  ContactList contacts = detect_contacts(model, state, options.detection, workspace.detection_memory, &detection);
+  report.stage_seconds[static_cast<std::size_t>(Stage::broad_phase)] += detection.broad_phase_seconds;
+  report.stage_seconds[static_cast<std::size_t>(Stage::narrow_phase)] += detection.narrow_phase_seconds;
+  report.contacts = contacts.size();
+  timer.restart();
+
+  // 4. match_contacts: last step's impulses warm-start the persistent contacts.
+  if (options.solver.warm_start) carry_impulses(workspace.contacts, contacts);
+  workspace.contacts = std::move(contacts);
+  timer.finish(Stage::match_contacts);
+
+  // 5. solve: Delassus blocks and targets, then NLGS sweeps; 6. update_velocity happens inside
+  // the sweeps (v = v_free + M^-1 H r, updated contact by contact).
+  prepare_contacts(model, state, workspace.velocity, options.integrator, options.solver, workspace.contacts);
+  timer.finish(Stage::solver_preparation);
+  report.solver = solve_contacts(model, state, options.solver, workspace.contacts, workspace.velocity);
+  timer.finish(Stage::nlgs_sweeps);
+
+  // 7. update_position: x += h((1 - theta) v_n + theta v_{n+1}), q <- exp(h w_theta) q.
+  update_positions(model, options.integrator, workspace.velocity, state);
+  timer.finish(Stage::update_positions);
+  return report;
+}
+
+}  // namespace rubble
