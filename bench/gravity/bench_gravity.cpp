@@ -1,0 +1,204 @@
+// Timed benchmark of rubble::gravity (plain executable, prints a Markdown table and a CSV).
+//
+//   bench_gravity [--n 1000,10000,100000,1000000] [--theta 0.3,0.5,0.7,1.0] [--order 1,2]
+//                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
+//                 [--csv FILE] [--direct-rate]
+//
+// Each tree figure is the best of --reps evaluations (tree build included). Errors are the
+// per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
+// (N <= 100000) or over --subset random targets (larger N).
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "gravity/direct_sum.hpp"
+#include "gravity/gravity.hpp"
+#include "gravity/tree.hpp"
+
+namespace g = rubble::gravity;
+
+namespace {
+
+std::vector<double> parse_list(const std::string& s) {
+  std::vector<double> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(std::stod(item));
+  return out;
+}
+
+/// Uniform sphere of radius 1 and total mass 1, or a Plummer sphere (scale radius 1, truncated at
+/// 20 scale radii) sampled by inverting its cumulative mass M(r) = r^3 / (1 + r^2)^{3/2}.
+void make_particles(const std::string& dist, std::size_t n, std::uint64_t seed,
+                    std::vector<double>& pos, std::vector<double>& mass) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  pos.resize(3 * n);
+  mass.assign(n, 1.0 / static_cast<double>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    double r;
+    if (dist == "plummer") {
+      do {
+        const double x = u(rng);
+        r = 1.0 / std::sqrt(std::pow(x, -2.0 / 3.0) - 1.0);
+      } while (!(r < 20.0));
+    } else {
+      r = std::cbrt(u(rng));
+    }
+    const double cz = 2.0 * u(rng) - 1.0, ph = 2.0 * M_PI * u(rng);
+    const double sz = std::sqrt(1.0 - cz * cz);
+    pos[3 * i] = r * sz * std::cos(ph);
+    pos[3 * i + 1] = r * sz * std::sin(ph);
+    pos[3 * i + 2] = r * cz;
+  }
+}
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  const auto k = static_cast<std::size_t>(std::clamp(p * static_cast<double>(v.size() - 1), 0.0,
+                                                     static_cast<double>(v.size() - 1)));
+  return v[k];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2},
+      threads{1, 2};
+  int reps = 3;
+  std::size_t subset = 1000;
+  std::string dist = "uniform", csv_path;
+  bool direct_rate = false;
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    auto next = [&]() -> std::string {
+      if (a + 1 >= argc) {
+        std::fprintf(stderr, "missing value after %s\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++a];
+    };
+    if (arg == "--n") ns = parse_list(next());
+    else if (arg == "--theta") thetas = parse_list(next());
+    else if (arg == "--order") orders = parse_list(next());
+    else if (arg == "--threads") threads = parse_list(next());
+    else if (arg == "--reps") reps = std::stoi(next());
+    else if (arg == "--subset") subset = std::stoul(next());
+    else if (arg == "--dist") dist = next();
+    else if (arg == "--csv") csv_path = next();
+    else if (arg == "--direct-rate") direct_rate = true;
+    else {
+      std::fprintf(stderr, "unknown argument %s\n", arg.c_str());
+      return 2;
+    }
+  }
+  std::ofstream csv;
+  if (!csv_path.empty()) {
+    csv.open(csv_path);
+    csv << "dist,n,theta,order,threads,seconds,build_seconds,walk_seconds,median,p99,max\n";
+  }
+  const int max_threads = static_cast<int>(*std::max_element(threads.begin(), threads.end()));
+
+  if (direct_rate) {
+    std::printf("| N | threads | seconds | pair interactions / s | per core |\n|---|---|---|---|---|\n");
+    for (double nd : ns) {
+      const auto n = static_cast<std::size_t>(nd);
+      std::vector<double> pos, mass, acc(3 * n), pot(n);
+      make_particles(dist, n, 42, pos, mass);
+      g::GravityOptions o;
+      o.method = g::Method::direct;
+      o.G = 1.0;
+      for (double t : threads) {
+        omp_set_num_threads(static_cast<int>(t));
+        double best = 1e300;
+        for (int r = 0; r < reps; ++r) {
+          const double t0 = now();
+          g::direct_sum(o, pos, mass, acc, pot);
+          best = std::min(best, now() - t0);
+        }
+        const double rate = static_cast<double>(n) * static_cast<double>(n - 1) / best;
+        std::printf("| %zu | %d | %.4g | %.3g | %.3g |\n", n, static_cast<int>(t), best, rate,
+                    rate / t);
+        std::fflush(stdout);
+      }
+    }
+    return 0;
+  }
+
+  std::printf("| dist | N | θ | order | threads | s/eval (best of %d) | build s | walk s | median | p99 | max |\n",
+              reps);
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (double nd : ns) {
+    const auto n = static_cast<std::size_t>(nd);
+    std::vector<double> pos, mass;
+    make_particles(dist, n, 42, pos, mass);
+    // Exact reference on all targets, or on a random subset for large N.
+    std::vector<std::size_t> targets(n);
+    std::iota(targets.begin(), targets.end(), std::size_t{0});
+    if (n > 100000) {
+      std::mt19937_64 rng(7);
+      std::shuffle(targets.begin(), targets.end(), rng);
+      targets.resize(std::min(subset, n));
+    }
+    g::GravityOptions ref;
+    ref.method = g::Method::direct;
+    ref.G = 1.0;
+    std::vector<double> aref(3 * targets.size());
+    omp_set_num_threads(max_threads);
+    g::direct_sum_targets(ref, pos, mass, targets, aref, {});
+    for (double order : orders)
+      for (double theta : thetas) {
+        g::GravityOptions o;
+        o.method = g::Method::tree;
+        o.G = 1.0;
+        o.theta = theta;
+        o.order = static_cast<int>(order);
+        std::vector<double> acc(3 * n), pot(n);
+        for (double t : threads) {
+          omp_set_num_threads(static_cast<int>(t));
+          double best = 1e300, bb = 0, bw = 0;
+          for (int r = 0; r < reps; ++r) {
+            const double t0 = now();
+            const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
+            const double dt = now() - t0;
+            if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds;
+          }
+          std::vector<double> err(targets.size());
+          for (std::size_t k = 0; k < targets.size(); ++k) {
+            const std::size_t i = targets[k];
+            double d2 = 0, a2 = 0;
+            for (int c = 0; c < 3; ++c) {
+              d2 += std::pow(acc[3 * i + c] - aref[3 * k + c], 2);
+              a2 += aref[3 * k + c] * aref[3 * k + c];
+            }
+            err[k] = std::sqrt(d2 / a2);
+          }
+          const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
+                       mx = *std::max_element(err.begin(), err.end());
+          std::printf("| %s | %zu | %.1f | %d | %d | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
+                      dist.c_str(), n, theta, o.order, static_cast<int>(t), best, bb, bw, med, p99,
+                      mx);
+          std::fflush(stdout);
+          if (csv.is_open())
+            csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best
+                << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << '\n';
+        }
+      }
+  }
+  return 0;
+}

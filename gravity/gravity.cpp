@@ -1,0 +1,77 @@
+#include "gravity/gravity.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "gravity/direct_sum.hpp"
+#include "gravity/tree.hpp"
+
+namespace rubble::gravity {
+
+std::string to_string(Method method) {
+  switch (method) {
+    case Method::direct:
+      return "direct";
+    case Method::tree:
+      return "tree";
+  }
+  return "unknown";
+}
+
+void validate_particles(const GravityOptions& options, std::span<const double> positions,
+                        std::span<const double> masses) {
+  if (!std::isfinite(options.G)) throw GravityError("G must be finite");
+  if (options.softening.kind == Softening::Kind::plummer &&
+      (!(options.softening.length >= 0) || !std::isfinite(options.softening.length)))
+    throw GravityError("softening length must be finite and >= 0");
+  if (positions.size() != 3 * masses.size())
+    throw GravityError("positions must hold 3 values per mass (got " +
+                       std::to_string(positions.size()) + " values for " +
+                       std::to_string(masses.size()) + " masses)");
+  for (std::size_t i = 0; i < masses.size(); ++i) {
+    if (!std::isfinite(masses[i]) || masses[i] < 0)
+      throw GravityError("mass " + std::to_string(i) + " is not a finite number >= 0");
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(positions[3 * i + d]))
+        throw GravityError("position " + std::to_string(i) + " is not finite");
+  }
+}
+
+void validate(const GravityOptions& options, std::span<const double> positions,
+              std::span<const double> masses, std::span<const double> accelerations,
+              std::span<const double> potential) {
+  if (options.method == Method::tree) {
+    if (!(options.theta > 0) || !std::isfinite(options.theta))
+      throw GravityError("theta must be a finite number > 0");
+    if (options.order != 1 && options.order != 2)
+      throw GravityError("order must be 1 (monopole) or 2 (quadrupole)");
+    if (options.leaf_size < 1) throw GravityError("leaf_size must be >= 1");
+    if (options.group_size < 1) throw GravityError("group_size must be >= 1");
+  }
+  validate_particles(options, positions, masses);
+  if (accelerations.size() != positions.size())
+    throw GravityError("accelerations must hold 3N values (" + std::to_string(positions.size()) +
+                       "), got " + std::to_string(accelerations.size()));
+  if (!potential.empty() && potential.size() != masses.size())
+    throw GravityError("potential must be empty or hold N values (" +
+                       std::to_string(masses.size()) + "), got " + std::to_string(potential.size()));
+}
+
+FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
+                           std::span<const double> masses, std::span<double> accelerations,
+                           std::span<double> potential) {
+  validate(options, positions, masses, accelerations, potential);
+  FieldTimings t;
+  if (options.method == Method::direct) {
+    const auto t0 = std::chrono::steady_clock::now();
+    direct_sum(options, positions, masses, accelerations, potential);
+    t.walk_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return t;
+  }
+  Tree tree(options.leaf_size, options.group_size);
+  t.build_seconds = tree.build(positions, masses);
+  t.walk_seconds = tree.evaluate(options, accelerations, potential);
+  return t;
+}
+
+}  // namespace rubble::gravity

@@ -1,0 +1,88 @@
+#pragma once
+// rubble::gravity — Newtonian self-gravity of N point masses (standalone library).
+//
+// Entry point: compute_field(). It depends on nothing else in rubble, so other codes (and a later
+// Python module) can call it. Units: whatever G says; SI by default (G = 6.674e-11 m^3 kg^-1 s^-2).
+//
+//   a_i   = -G * sum_{j != i} m_j (x_i - x_j) / (|x_i - x_j|^2 + eps^2)^{3/2}
+//   phi_i = -G * sum_{j != i} m_j / (|x_i - x_j|^2 + eps^2)^{1/2}
+//
+// eps = 0 unless Plummer softening is requested. See gravity/README.md for the tree algorithm.
+
+#include <span>
+#include <stdexcept>
+#include <string>
+
+namespace rubble::gravity {
+
+/// Which evaluator computes the field.
+enum class Method {
+  direct,  ///< exact O(N^2) pairwise sum
+  tree     ///< Barnes-Hut octree with monopole or quadrupole moments, O(N log N)
+};
+
+/// Softening of the 1/r potential at short range.
+struct Softening {
+  /// none: exact Newtonian 1/r. plummer: 1/sqrt(r^2 + length^2) (Plummer 1911; Aarseth 1963).
+  enum class Kind { none, plummer } kind = Kind::none;
+  /// Plummer length eps [m]; ignored when kind == none. Must be >= 0.
+  double length = 0.0;
+};
+
+/// Everything compute_field() needs besides the particles.
+struct GravityOptions {
+  /// Evaluator to use.
+  Method method = Method::tree;
+  /// Gravitational constant [m^3 kg^-1 s^-2]; any unit system is used through G.
+  double G = 6.674e-11;
+  /// Opening angle of the tree: a node is used as a multipole for a group of targets when the
+  /// distance from its centre of mass to the group's bounding box exceeds max(l/theta + delta,
+  /// b_max) (l: longest side of the node's box, delta: offset of the centre of mass from the box
+  /// centre, b_max: farthest particle from the centre of mass). Must be > 0. Ignored by direct.
+  double theta = 0.5;
+  /// Multipole order of the tree: 1 = monopole, 2 = quadrupole. Ignored by Method::direct.
+  int order = 2;
+  /// Short-range softening (both methods).
+  Softening softening{};
+  /// Maximum number of particles in a tree leaf (>= 1). Ignored by Method::direct.
+  int leaf_size = 16;
+  /// Maximum number of targets that walk the tree together (share one interaction list); >= 1.
+  int group_size = 64;
+};
+
+/// Wall-clock seconds spent in the two phases of an evaluation (direct sum: walk only).
+struct FieldTimings {
+  /// Tree construction: Morton keys, sort, nodes, moments.
+  double build_seconds = 0;
+  /// Field evaluation (tree walk + interaction kernels, or the direct sum).
+  double walk_seconds = 0;
+};
+
+/// Thrown for invalid arguments (sizes, theta <= 0, order not in {1, 2}, ...).
+class GravityError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Checks options and array sizes; throws GravityError with a message naming the problem.
+/// positions: 3N values, masses: N values, accelerations: 3N values, potential: N values or empty.
+void validate(const GravityOptions& options, std::span<const double> positions,
+              std::span<const double> masses, std::span<const double> accelerations,
+              std::span<const double> potential);
+
+/// Checks options and the particle arrays only (positions 3N finite, masses N finite and >= 0).
+void validate_particles(const GravityOptions& options, std::span<const double> positions,
+                        std::span<const double> masses);
+
+/// Computes the gravitational acceleration (and optionally the potential) of every particle due to
+/// all others. positions: N*3 contiguous (x0,y0,z0,x1,...), masses: N. Writes accelerations (N*3)
+/// and potential (N; pass an empty span to skip it). Self-interaction is excluded. Results are
+/// bit-identical for any number of OpenMP threads. Throws GravityError on invalid input.
+FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
+                           std::span<const double> masses, std::span<double> accelerations,
+                           std::span<double> potential);
+
+/// Human-readable name of a method ("direct", "tree").
+std::string to_string(Method method);
+
+}  // namespace rubble::gravity

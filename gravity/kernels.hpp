@@ -1,0 +1,40 @@
+#pragma once
+// Interaction kernels shared by the direct sum and the tree (internal to rubble::gravity).
+//
+// Sources are given as structure-of-arrays so that the loop over sources vectorizes (one target
+// per call, sources in SIMD lanes). The sums use `omp simd reduction`, so their order depends only
+// on the SIMD width of the instruction set chosen at run time (same machine -> same bits), never
+// on the number of threads.
+
+#include <cstddef>
+
+namespace rubble::gravity::detail {
+
+/// Field accumulated at one target: acceleration without the factor -G, potential without -G.
+struct Accum {
+  double ax = 0, ay = 0, az = 0, phi = 0;
+};
+
+/// Particle-particle: adds sum_j m_j r_ij / (r_ij^2 + eps2)^{3/2} (r_ij = x_i - x_j) to (ax,ay,az)
+/// and sum_j m_j / (r_ij^2 + eps2)^{1/2} to phi, over sources j in [0, n). A source with
+/// r_ij^2 + eps2 == 0 (the target itself when eps2 == 0) contributes nothing. When eps2 > 0 the
+/// target itself, if among the sources, contributes m_i / eps to phi (zero to a): the caller
+/// removes it.
+void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+         double xi, double yi, double zi, double eps2, Accum& acc);
+
+/// Quadrupole cell-particle: adds the field of n cells, each with mass m, centre of mass c and
+/// second moment M_ab = sum_k m_k (y_k - c)_a (y_k - c)_b (not trace-free, so that the softened
+/// kernel 1/sqrt(r^2 + eps2) is expanded exactly to second order). With D = (r^2 + eps2)^{-1/2},
+/// r = x - c (Taylor expansion of the potential about c; first-order term vanishes at the centre
+/// of mass):
+///   phi/(-G) = m D + (3/2) D^5 (r.M.r) - (1/2) D^3 tr M
+///   a/G      = -m D^3 r + 3 D^5 (M r) + (3/2) D^5 tr M r - (15/2) D^7 (r.M.r) r
+/// The accumulated values follow the sign convention of p2p (a/(-G), phi/(-G)).
+/// q points to 6 arrays: Mxx, Mxy, Mxz, Myy, Myz, Mzz, each of length n.
+void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm,
+                    const double* qxx, const double* qxy, const double* qxz, const double* qyy,
+                    const double* qyz, const double* qzz, std::size_t n, double xi, double yi,
+                    double zi, double eps2, Accum& acc);
+
+}  // namespace rubble::gravity::detail

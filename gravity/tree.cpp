@@ -1,0 +1,426 @@
+#include "gravity/tree.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "gravity/kernels.hpp"
+
+namespace rubble::gravity {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Spreads the low 21 bits of v so that bit b moves to bit 3b (Morton interleaving by the usual
+/// shift-and-mask sequence).
+std::uint64_t spread_bits(std::uint64_t v) {
+  v &= 0x1fffffULL;
+  v = (v | (v << 32)) & 0x1f00000000ffffULL;
+  v = (v | (v << 16)) & 0x1f0000ff0000ffULL;
+  v = (v | (v << 8)) & 0x100f00f00f00f00fULL;
+  v = (v | (v << 4)) & 0x10c30c30c30c30c3ULL;
+  v = (v | (v << 2)) & 0x1249249249249249ULL;
+  return v;
+}
+
+constexpr int kBitsPerAxis = 21;  // 3 * 21 = 63-bit keys
+constexpr double kCells = static_cast<double>(1u << kBitsPerAxis);
+// b_max is rounded up by a few ulps so that a node containing a target can never pass the
+// (strict) acceptance test through rounding, even with theta >= 1.
+constexpr double kBmaxSafety = 1.0 + 1e-12;
+
+/// Stable LSD radix sort of (key, index) pairs on 8-bit digits. Stable + keys computed from the
+/// positions only => the order does not depend on anything but the input (determinism).
+void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& idx) {
+  const std::size_t n = keys.size();
+  std::vector<std::uint64_t> k2(n);
+  std::vector<std::uint32_t> i2(n);
+  for (int shift = 0; shift < 64; shift += 8) {
+    std::size_t count[257] = {};
+    for (std::size_t i = 0; i < n; ++i) ++count[((keys[i] >> shift) & 0xff) + 1];
+    // A digit shared by all keys leaves the order unchanged: skip the pass.
+    if (std::any_of(count + 1, count + 257, [n](std::size_t c) { return c == n; })) continue;
+    for (int d = 0; d < 256; ++d) count[d + 1] += count[d];
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t dst = count[(keys[i] >> shift) & 0xff]++;
+      k2[dst] = keys[i];
+      i2[dst] = idx[i];
+    }
+    keys.swap(k2);
+    idx.swap(i2);
+  }
+}
+
+/// Squared distance from point p to the box [lo, hi] (0 inside).
+inline double dist2_point_box(double px, double py, double pz, const std::array<double, 3>& lo,
+                              const std::array<double, 3>& hi) {
+  const double dx = std::max({lo[0] - px, 0.0, px - hi[0]});
+  const double dy = std::max({lo[1] - py, 0.0, py - hi[1]});
+  const double dz = std::max({lo[2] - pz, 0.0, pz - hi[2]});
+  return dx * dx + dy * dy + dz * dz;
+}
+
+/// Per-thread scratch for one group: the interaction lists, gathered as structure of arrays so
+/// that the kernels run unit-stride over sources.
+struct GroupBuffers {
+  std::vector<double> px, py, pz, pm;                         // P2P sources (and monopole cells)
+  std::vector<double> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
+  std::vector<std::uint32_t> stack;
+  void clear() {
+    for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz})
+      v->clear();
+    stack.clear();
+  }
+};
+
+}  // namespace
+
+Tree::Tree(int leaf_size, int group_size) : leaf_size_(leaf_size), group_size_(group_size) {
+  if (leaf_size < 1) throw GravityError("Tree: leaf_size must be >= 1");
+  if (group_size < 1) throw GravityError("Tree: group_size must be >= 1");
+}
+
+void Tree::load_particles(std::span<const double> positions, std::span<const double> masses) {
+  const std::size_t n = masses.size();
+  x_.resize(n);
+  y_.resize(n);
+  z_.resize(n);
+  m_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = order_[k];
+    x_[k] = positions[3 * i];
+    y_[k] = positions[3 * i + 1];
+    z_[k] = positions[3 * i + 2];
+    m_[k] = masses[i];
+  }
+}
+
+double Tree::build(std::span<const double> positions, std::span<const double> masses) {
+  const auto t0 = Clock::now();
+  validate_particles(GravityOptions{}, positions, masses);
+  const std::size_t n = masses.size();
+  if (n > std::numeric_limits<std::uint32_t>::max() / 2)
+    throw GravityError("Tree: too many particles (limit 2^31)");
+  nodes_.clear();
+  second_moments_.clear();
+  groups_.clear();
+  order_.resize(n);
+  if (n == 0) {
+    x_.clear(), y_.clear(), z_.clear(), m_.clear();
+    return seconds_since(t0);
+  }
+
+  // Bounding cube of all particles, then 21-bit integer coordinates and Morton keys.
+  double lo[3] = {positions[0], positions[1], positions[2]};
+  double hi[3] = {lo[0], lo[1], lo[2]};
+  for (std::size_t i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], positions[3 * i + d]);
+      hi[d] = std::max(hi[d], positions[3 * i + d]);
+    }
+  const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  const double scale = extent > 0 ? kCells / extent : 0.0;
+  std::vector<std::uint64_t> keys(n);
+  const auto sn = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t s = 0; s < sn; ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    std::uint64_t key = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double q = std::floor((positions[3 * i + d] - lo[d]) * scale);
+      const auto c = static_cast<std::uint64_t>(std::clamp(q, 0.0, kCells - 1.0));
+      key |= spread_bits(c) << (2 - d);
+    }
+    keys[i] = key;
+    order_[i] = static_cast<std::uint32_t>(i);
+  }
+  radix_sort(keys, order_);
+  load_particles(positions, masses);
+
+  // Nodes: recursive split of sorted key ranges by their first differing octal digit. Ranges whose
+  // keys share the next digits are not split into single-child chains (compressed octree).
+  nodes_.emplace_back();
+  nodes_[0].begin = 0;
+  nodes_[0].count = static_cast<std::uint32_t>(n);
+  std::vector<std::uint32_t> todo{0};
+  while (!todo.empty()) {
+    const std::uint32_t ni = todo.back();
+    todo.pop_back();
+    const std::uint32_t b = nodes_[ni].begin, e = b + nodes_[ni].count;
+    if (nodes_[ni].count <= static_cast<std::uint32_t>(leaf_size_)) continue;
+    const std::uint64_t diff = keys[b] ^ keys[e - 1];
+    if (diff == 0) continue;  // identical keys (coincident particles): stays a leaf
+    const int high_bit = 63 - std::countl_zero(diff);
+    const int shift = (high_bit / 3) * 3;  // the octal digit holding the first differing bit
+    const auto first_child = static_cast<std::int32_t>(nodes_.size());
+    std::uint32_t start = b;
+    for (std::uint64_t digit = 0; digit < 8 && start < e; ++digit) {
+      const auto stop = static_cast<std::uint32_t>(
+          std::partition_point(keys.begin() + start, keys.begin() + e,
+                               [&](std::uint64_t k) { return ((k >> shift) & 7) == digit; }) -
+          keys.begin());
+      if (stop > start) {
+        Node child;
+        child.begin = start;
+        child.count = stop - start;
+        nodes_.push_back(child);
+      }
+      start = stop;
+    }
+    nodes_[ni].first_child = first_child;
+    nodes_[ni].num_children = static_cast<std::int32_t>(nodes_.size()) - first_child;
+    // Push in reverse so that the depth-first order of processing is the key order (not required
+    // for correctness; it keeps subtrees contiguous in memory).
+    for (std::int32_t c = nodes_[ni].num_children - 1; c >= 0; --c)
+      todo.push_back(static_cast<std::uint32_t>(first_child + c));
+  }
+  second_moments_.resize(nodes_.size());
+  compute_moments();
+  collect_groups();
+  return seconds_since(t0);
+}
+
+double Tree::refit(std::span<const double> positions, std::span<const double> masses) {
+  const auto t0 = Clock::now();
+  validate_particles(GravityOptions{}, positions, masses);
+  if (masses.size() != order_.size())
+    throw GravityError("Tree::refit: particle count differs from the last build (" +
+                       std::to_string(masses.size()) + " vs " + std::to_string(order_.size()) + ")");
+  load_particles(positions, masses);
+  compute_moments();
+  return seconds_since(t0);
+}
+
+void Tree::compute_moments() {
+  // Children always have larger indices than their parent: a reverse sweep is bottom-up.
+  for (std::size_t r = nodes_.size(); r-- > 0;) {
+    Node& nd = nodes_[r];
+    std::array<double, 6>& q = second_moments_[r];
+    q.fill(0.0);
+    double m = 0, sx = 0, sy = 0, sz = 0;
+    if (nd.first_child < 0) {
+      const std::uint32_t b = nd.begin, e = nd.begin + nd.count;
+      nd.lo = {x_[b], y_[b], z_[b]};
+      nd.hi = nd.lo;
+      for (std::uint32_t k = b; k < e; ++k) {
+        m += m_[k];
+        sx += m_[k] * x_[k];
+        sy += m_[k] * y_[k];
+        sz += m_[k] * z_[k];
+        nd.lo = {std::min(nd.lo[0], x_[k]), std::min(nd.lo[1], y_[k]), std::min(nd.lo[2], z_[k])};
+        nd.hi = {std::max(nd.hi[0], x_[k]), std::max(nd.hi[1], y_[k]), std::max(nd.hi[2], z_[k])};
+      }
+    } else {
+      const Node& c0 = nodes_[static_cast<std::size_t>(nd.first_child)];
+      nd.lo = c0.lo;
+      nd.hi = c0.hi;
+      for (std::int32_t c = 0; c < nd.num_children; ++c) {
+        const Node& ch = nodes_[static_cast<std::size_t>(nd.first_child + c)];
+        m += ch.mass;
+        sx += ch.mass * ch.cx;
+        sy += ch.mass * ch.cy;
+        sz += ch.mass * ch.cz;
+        for (int d = 0; d < 3; ++d) {
+          nd.lo[d] = std::min(nd.lo[d], ch.lo[d]);
+          nd.hi[d] = std::max(nd.hi[d], ch.hi[d]);
+        }
+      }
+    }
+    nd.mass = m;
+    if (m > 0) {
+      nd.cx = sx / m, nd.cy = sy / m, nd.cz = sz / m;
+    } else {  // massless particles only: any centre works, the moments are zero
+      nd.cx = 0.5 * (nd.lo[0] + nd.hi[0]);
+      nd.cy = 0.5 * (nd.lo[1] + nd.hi[1]);
+      nd.cz = 0.5 * (nd.lo[2] + nd.hi[2]);
+    }
+    // Farthest corner of the bounding box: a bound for b_max that is always valid.
+    double corner2 = 0;
+    {
+      const double dx = std::max(nd.cx - nd.lo[0], nd.hi[0] - nd.cx);
+      const double dy = std::max(nd.cy - nd.lo[1], nd.hi[1] - nd.cy);
+      const double dz = std::max(nd.cz - nd.lo[2], nd.hi[2] - nd.cz);
+      corner2 = dx * dx + dy * dy + dz * dz;
+    }
+    nd.size = std::max({nd.hi[0] - nd.lo[0], nd.hi[1] - nd.lo[1], nd.hi[2] - nd.lo[2]});
+    {
+      const double dx = nd.cx - 0.5 * (nd.lo[0] + nd.hi[0]);
+      const double dy = nd.cy - 0.5 * (nd.lo[1] + nd.hi[1]);
+      const double dz = nd.cz - 0.5 * (nd.lo[2] + nd.hi[2]);
+      nd.delta = std::sqrt(dx * dx + dy * dy + dz * dz);
+    }
+    if (nd.first_child < 0) {
+      // Second moment about the centre of mass and the exact b_max.
+      double b2 = 0;
+      for (std::uint32_t k = nd.begin; k < nd.begin + nd.count; ++k) {
+        const double dx = x_[k] - nd.cx, dy = y_[k] - nd.cy, dz = z_[k] - nd.cz;
+        q[0] += m_[k] * dx * dx;
+        q[1] += m_[k] * dx * dy;
+        q[2] += m_[k] * dx * dz;
+        q[3] += m_[k] * dy * dy;
+        q[4] += m_[k] * dy * dz;
+        q[5] += m_[k] * dz * dz;
+        b2 = std::max(b2, dx * dx + dy * dy + dz * dz);
+      }
+      nd.bmax = std::sqrt(std::min(b2, corner2)) * kBmaxSafety;
+    } else {
+      // Parallel-axis theorem: M = sum_c [M_c + m_c d_c d_c^T], d_c = c_c - c.
+      double bound = 0;
+      for (std::int32_t c = 0; c < nd.num_children; ++c) {
+        const auto ci = static_cast<std::size_t>(nd.first_child + c);
+        const Node& ch = nodes_[ci];
+        const std::array<double, 6>& qc = second_moments_[ci];
+        const double dx = ch.cx - nd.cx, dy = ch.cy - nd.cy, dz = ch.cz - nd.cz;
+        q[0] += qc[0] + ch.mass * dx * dx;
+        q[1] += qc[1] + ch.mass * dx * dy;
+        q[2] += qc[2] + ch.mass * dx * dz;
+        q[3] += qc[3] + ch.mass * dy * dy;
+        q[4] += qc[4] + ch.mass * dy * dz;
+        q[5] += qc[5] + ch.mass * dz * dz;
+        bound = std::max(bound, std::sqrt(dx * dx + dy * dy + dz * dz) + ch.bmax);
+      }
+      nd.bmax = std::min(bound, std::sqrt(corner2)) * kBmaxSafety;
+    }
+  }
+}
+
+void Tree::collect_groups() {
+  // Depth-first: the largest nodes holding at most group_size particles (or leaves) are groups.
+  groups_.clear();
+  if (nodes_.empty()) return;
+  std::vector<std::uint32_t> todo{0};
+  while (!todo.empty()) {
+    const std::uint32_t ni = todo.back();
+    todo.pop_back();
+    const Node& nd = nodes_[ni];
+    if (nd.first_child < 0 || nd.count <= static_cast<std::uint32_t>(group_size_)) {
+      groups_.push_back(ni);
+      continue;
+    }
+    for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
+      todo.push_back(static_cast<std::uint32_t>(nd.first_child + c));
+  }
+}
+
+double Tree::evaluate(const GravityOptions& options, std::span<double> accelerations,
+                      std::span<double> potential) const {
+  const auto t0 = Clock::now();
+  const std::size_t n = order_.size();
+  if (options.order != 1 && options.order != 2)
+    throw GravityError("Tree: order must be 1 (monopole) or 2 (quadrupole), got " +
+                       std::to_string(options.order));
+  if (!(options.theta > 0) || !std::isfinite(options.theta))
+    throw GravityError("Tree: theta must be a finite number > 0");
+  if (accelerations.size() != 3 * n)
+    throw GravityError("Tree: accelerations must hold 3N values");
+  if (!potential.empty() && potential.size() != n)
+    throw GravityError("Tree: potential must be empty or hold N values");
+  stats_ = Stats{};
+  stats_.nodes = nodes_.size();
+  stats_.leaves = static_cast<std::size_t>(
+      std::count_if(nodes_.begin(), nodes_.end(), [](const Node& nd) { return nd.first_child < 0; }));
+  stats_.groups = groups_.size();
+  if (n == 0) return seconds_since(t0);
+
+  const double eps = options.softening.kind == Softening::Kind::plummer ? options.softening.length : 0.0;
+  const double eps2 = eps * eps;
+  const double G = options.G;
+  const bool quadrupole = options.order == 2;
+  // Opening criterion (Barnes 1994, "r > l/theta + delta"): a node is used as a multipole for the
+  // whole group when the distance from its centre of mass to the group's bounding box exceeds
+  //   r_open = max(l / theta + delta, b_max),
+  // l = longest side of the node's tight bounding box, delta = distance from the centre of mass to
+  // the box centre. The b_max term keeps every target strictly outside the sphere holding the
+  // node's particles (the expansion converges and a node never approximates a target's own mass,
+  // even for theta >= 1).
+  const double inv_theta = 1.0 / options.theta;
+  // Quadrupole evaluations cost about two particle interactions: tiny nodes are summed directly.
+  const std::uint32_t direct_below = quadrupole ? 3 : 0;
+  const bool with_potential = !potential.empty();
+  std::uint64_t p2p_total = 0, m2p_total = 0;
+
+#pragma omp parallel reduction(+ : p2p_total, m2p_total)
+  {
+    GroupBuffers buf;
+    auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
+      buf.px.insert(buf.px.end(), x_.begin() + b, x_.begin() + b + count);
+      buf.py.insert(buf.py.end(), y_.begin() + b, y_.begin() + b + count);
+      buf.pz.insert(buf.pz.end(), z_.begin() + b, z_.begin() + b + count);
+      buf.pm.insert(buf.pm.end(), m_.begin() + b, m_.begin() + b + count);
+    };
+    // Groups are independent: each target's sums run in the same order whatever thread runs
+    // them, so dynamic scheduling keeps results bit-identical for any thread count.
+#pragma omp for schedule(dynamic, 4)
+    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
+      const Node& g = nodes_[groups_[static_cast<std::size_t>(gi)]];
+      buf.clear();
+      buf.stack.push_back(0);
+      while (!buf.stack.empty()) {
+        const Node& nd = nodes_[buf.stack.back()];
+        const std::size_t ni = buf.stack.back();
+        buf.stack.pop_back();
+        const double d2 = dist2_point_box(nd.cx, nd.cy, nd.cz, g.lo, g.hi);
+        const double r_open = std::max(nd.bmax, nd.size * inv_theta + nd.delta);
+        if (d2 > r_open * r_open) {  // well separated from every target of the group
+          if (!quadrupole) {
+            buf.px.push_back(nd.cx);
+            buf.py.push_back(nd.cy);
+            buf.pz.push_back(nd.cz);
+            buf.pm.push_back(nd.mass);
+          } else if (nd.count < direct_below) {
+            push_particles(nd.begin, nd.count);
+          } else {
+            const std::array<double, 6>& q = second_moments_[ni];
+            buf.cx.push_back(nd.cx);
+            buf.cy.push_back(nd.cy);
+            buf.cz.push_back(nd.cz);
+            buf.cm.push_back(nd.mass);
+            buf.xx.push_back(q[0]);
+            buf.xy.push_back(q[1]);
+            buf.xz.push_back(q[2]);
+            buf.yy.push_back(q[3]);
+            buf.yz.push_back(q[4]);
+            buf.zz.push_back(q[5]);
+          }
+        } else if (nd.first_child < 0) {
+          push_particles(nd.begin, nd.count);
+        } else {
+          for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
+            buf.stack.push_back(static_cast<std::uint32_t>(nd.first_child + c));
+        }
+      }
+      const std::size_t np = buf.pm.size(), nc = buf.cm.size();
+      p2p_total += static_cast<std::uint64_t>(np) * g.count;
+      m2p_total += static_cast<std::uint64_t>(nc) * g.count;
+      for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
+        detail::Accum acc;
+        detail::p2p(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k],
+                    z_[k], eps2, acc);
+        if (nc > 0)
+          detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(),
+                                 buf.xx.data(), buf.xy.data(), buf.xz.data(), buf.yy.data(),
+                                 buf.yz.data(), buf.zz.data(), nc, x_[k], y_[k], z_[k], eps2, acc);
+        // The target's own leaf is always opened (it is within b_max of the node's centre), so
+        // with softening its self term m_k / eps is in acc.phi: remove it.
+        if (eps2 > 0) acc.phi -= m_[k] / eps;
+        const std::size_t o = order_[k];
+        accelerations[3 * o] = -G * acc.ax;
+        accelerations[3 * o + 1] = -G * acc.ay;
+        accelerations[3 * o + 2] = -G * acc.az;
+        if (with_potential) potential[o] = -G * acc.phi;
+      }
+    }
+  }
+  stats_.particle_interactions = p2p_total;
+  stats_.cell_interactions = m2p_total;
+  return seconds_since(t0);
+}
+
+}  // namespace rubble::gravity

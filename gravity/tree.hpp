@@ -1,0 +1,91 @@
+#pragma once
+// Barnes-Hut octree over Morton-sorted particles, with monopole and quadrupole moments and a
+// group walk (targets that are close in the Morton order share one interaction list).
+//
+// Typical use (and what compute_field() does for Method::tree):
+//   Tree tree(options.leaf_size, options.group_size);
+//   tree.build(positions, masses);                       // sort + nodes + moments
+//   tree.evaluate(options, accelerations, potential);    // walk + kernels
+// When particles moved a little, tree.refit(positions, masses) keeps the order and the topology
+// and only recomputes boxes and moments (still exact criterion, somewhat more interactions).
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "gravity/gravity.hpp"
+
+namespace rubble::gravity {
+
+/// A Barnes-Hut octree: particles are reordered along a Morton (Z-order) curve so that every node
+/// owns a contiguous range of them. Build is sequential apart from key computation and fully
+/// deterministic; evaluate() is parallel over groups of targets.
+class Tree {
+ public:
+  /// One octree node. Children of a node are contiguous in the node array, after their parent.
+  struct Node {
+    double cx = 0, cy = 0, cz = 0;  ///< centre of mass [m] (box centre if the mass is zero)
+    double mass = 0;                ///< total mass [kg]
+    double bmax = 0;                ///< upper bound of |x_k - c| over the node's particles [m]
+    double size = 0;                ///< longest side of the tight bounding box [m]
+    double delta = 0;               ///< distance from the centre of mass to the box centre [m]
+    std::array<double, 3> lo{}, hi{};  ///< tight bounding box of the node's particles [m]
+    std::uint32_t begin = 0;        ///< first particle (in sorted order)
+    std::uint32_t count = 0;        ///< number of particles
+    std::int32_t first_child = -1;  ///< index of the first child, -1 for a leaf
+    std::int32_t num_children = 0;  ///< number of (non-empty) children, 0 for a leaf
+  };
+
+  /// Work counters of the last evaluate() (summed over targets).
+  struct Stats {
+    std::size_t nodes = 0;             ///< nodes in the tree
+    std::size_t leaves = 0;            ///< leaf nodes
+    std::size_t groups = 0;            ///< target groups walked
+    std::uint64_t particle_interactions = 0;  ///< target-particle pairs (P2P)
+    std::uint64_t cell_interactions = 0;      ///< target-node multipole evaluations (M2P)
+  };
+
+  /// leaf_size: max particles per leaf (>= 1); group_size: max targets per walk group (>= 1).
+  explicit Tree(int leaf_size = 16, int group_size = 64);
+
+  /// Builds the tree (Morton keys, stable radix sort, nodes, moments). positions: 3N, masses: N,
+  /// both finite, masses >= 0. Returns the wall-clock seconds spent. Throws GravityError.
+  double build(std::span<const double> positions, std::span<const double> masses);
+
+  /// Keeps the particle order and the node topology of the last build() and recomputes the
+  /// positions, masses, boxes and moments. Same N required. Returns the seconds spent.
+  double refit(std::span<const double> positions, std::span<const double> masses);
+
+  /// Field of all particles on all particles (self excluded) with options.theta, options.order,
+  /// options.softening and options.G. accelerations: 3N, potential: N or empty. Returns seconds.
+  double evaluate(const GravityOptions& options, std::span<double> accelerations,
+                  std::span<double> potential) const;
+
+  /// Number of particles of the last build().
+  std::size_t size() const { return order_.size(); }
+  /// Nodes, root first (empty when N == 0).
+  const std::vector<Node>& nodes() const { return nodes_; }
+  /// order()[k] = index (in the caller's arrays) of the k-th particle along the Morton curve.
+  const std::vector<std::uint32_t>& order() const { return order_; }
+  /// Counters of the last evaluate().
+  const Stats& stats() const { return stats_; }
+
+ private:
+  void load_particles(std::span<const double> positions, std::span<const double> masses);
+  void compute_moments();
+  void build_nodes();
+  void collect_groups();
+
+  int leaf_size_;
+  int group_size_;
+  std::vector<std::uint32_t> order_;       // sorted -> original index
+  std::vector<double> x_, y_, z_, m_;      // particles in Morton order (SoA)
+  std::vector<Node> nodes_;
+  std::vector<std::array<double, 6>> second_moments_;  // Mxx Mxy Mxz Myy Myz Mzz per node
+  std::vector<std::uint32_t> groups_;      // node indices whose particles walk together
+  mutable Stats stats_;
+};
+
+}  // namespace rubble::gravity
