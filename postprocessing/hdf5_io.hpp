@@ -1,0 +1,163 @@
+#pragma once
+// Small RAII and typed helpers over the HDF5 C API, shared by the run-file writer, the run-file
+// reader and the metrics writer of this folder. Internal to postprocessing/ (it includes hdf5.h):
+// public headers of this folder do not include it.
+#include <hdf5.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace rubble::hdf5 {
+
+/// Owns one HDF5 identifier and closes it with the matching H5xclose on destruction.
+class Handle {
+ public:
+  using Closer = herr_t (*)(hid_t);  ///< H5Fclose, H5Gclose, H5Dclose, ...
+  Handle() = default;                ///< an empty handle (id -1)
+  /// Takes ownership of `id` (which may be negative: then nothing is closed).
+  Handle(hid_t id, Closer closer) : id_(id), closer_(closer) {}
+  Handle(Handle&& other) noexcept : id_(std::exchange(other.id_, -1)), closer_(other.closer_) {}  ///< moves
+  /// Closes this id, takes the other's.
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      id_ = std::exchange(other.id_, -1);
+      closer_ = other.closer_;
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() { reset(); }
+  /// Closes the id now; returns the closer's status (negative on failure, e.g. a failed flush).
+  herr_t reset() {
+    herr_t status = 0;
+    if (id_ >= 0 && closer_ != nullptr) status = closer_(id_);
+    id_ = -1;
+    return status;
+  }
+  /// The raw identifier.
+  hid_t get() const { return id_; }
+  /// True if the handle holds a valid id.
+  explicit operator bool() const { return id_ >= 0; }
+
+ private:
+  hid_t id_ = -1;
+  Closer closer_ = nullptr;
+};
+
+/// While alive, HDF5 does not print its error stack on stderr (we throw with the message instead).
+/// Restores the previous error handler on destruction.
+class QuietErrors {
+ public:
+  QuietErrors() {
+    H5Eget_auto2(H5E_DEFAULT, &function_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietErrors() { H5Eset_auto2(H5E_DEFAULT, function_, data_); }
+  QuietErrors(const QuietErrors&) = delete;
+  QuietErrors& operator=(const QuietErrors&) = delete;
+
+ private:
+  H5E_auto2_t function_ = nullptr;
+  void* data_ = nullptr;
+};
+
+/// The innermost message on HDF5's error stack (e.g. "unable to open file"), or "".
+std::string last_error_message();
+
+/// Throws std::runtime_error("<file>: <what>: <HDF5 message>") if `status` < 0.
+void check(herr_t status, const std::filesystem::path& file, std::string_view what);
+/// Wraps an id: throws like check() if it is negative, otherwise returns an owning handle.
+Handle own(hid_t id, Handle::Closer closer, const std::filesystem::path& file, std::string_view what);
+
+/// Creates (truncates) an HDF5 file; throws with the path on failure. Errors are not printed.
+Handle create_file(const std::filesystem::path& path);
+/// Opens an HDF5 file read-only; throws with the path on failure.
+Handle open_file(const std::filesystem::path& path);
+
+/// Creates a group (and tracks its links' creation order).
+Handle create_group(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// Opens an existing group; throws "missing group" if it is not there.
+Handle open_group(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// True if `name` (a path relative to parent) is a link in the file.
+bool exists(hid_t parent, const std::string& name);
+/// Names of the links in a group, in their creation order if tracked, else by name.
+std::vector<std::string> link_names(hid_t group, const std::filesystem::path& file);
+
+/// Writes a dataset of shape dims (row-major) from `data` (size = product of dims; may be 0).
+void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
+                   std::span<const hsize_t> dims, const std::filesystem::path& file);
+/// Same for 64-bit integers.
+void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
+                  std::span<const hsize_t> dims, const std::filesystem::path& file);
+/// Same for 32-bit integers.
+void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
+                  std::span<const hsize_t> dims, const std::filesystem::path& file);
+/// Same for 8-bit integers.
+void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
+                 std::span<const hsize_t> dims, const std::filesystem::path& file);
+/// A scalar variable-length UTF-8 string dataset.
+void write_string(hid_t parent, const std::string& name, std::string_view text, const std::filesystem::path& file);
+/// A 1-D dataset of variable-length UTF-8 strings.
+void write_strings(hid_t parent, const std::string& name, std::span<const std::string> texts,
+                   const std::filesystem::path& file);
+
+/// Scalar attributes on an object.
+void write_attribute(hid_t object, const std::string& name, double value, const std::filesystem::path& file);
+/// Scalar 64-bit integer attribute.
+void write_attribute(hid_t object, const std::string& name, std::int64_t value, const std::filesystem::path& file);
+/// Variable-length UTF-8 string attribute.
+void write_attribute(hid_t object, const std::string& name, std::string_view value, const std::filesystem::path& file);
+/// 1-D attribute of variable-length UTF-8 strings.
+void write_attribute(hid_t object, const std::string& name, std::span<const std::string> values,
+                     const std::filesystem::path& file);
+
+/// A dataset read back: its shape and its values converted to the requested type.
+template <typename T>
+struct Array {
+  std::vector<hsize_t> dims;  ///< shape
+  std::vector<T> values;      ///< row-major
+  /// Number of rows (dims[0]), 1 for a scalar.
+  std::size_t rows() const { return dims.empty() ? 1 : static_cast<std::size_t>(dims[0]); }
+};
+
+/// Reads a numeric dataset as doubles (HDF5 converts the type); throws if missing.
+Array<double> read_doubles(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// Reads a numeric dataset as 64-bit integers; throws if missing.
+Array<std::int64_t> read_int64s(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// Reads a scalar string dataset (variable or fixed length).
+std::string read_string(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// Reads a 1-D string dataset (variable length).
+std::vector<std::string> read_strings(hid_t parent, const std::string& name, const std::filesystem::path& file);
+/// Reads a scalar numeric attribute as double.
+double read_double_attribute(hid_t object, const std::string& name, const std::filesystem::path& file);
+/// Reads a string attribute (scalar, variable or fixed length).
+std::string read_string_attribute(hid_t object, const std::string& name, const std::filesystem::path& file);
+
+/// A 1-D dataset that grows by appending (chunked, unlimited maximum size).
+class ExtendableColumn {
+ public:
+  /// Creates `name` in `parent` with element type `type` (a predefined native type such as
+  /// H5T_NATIVE_DOUBLE), chunks of `chunk_rows` rows.
+  ExtendableColumn(hid_t parent, const std::string& name, hid_t type, hsize_t chunk_rows,
+                   const std::filesystem::path& file);
+  /// Appends `count` elements of the column's type read from `data`.
+  void append(const void* data, std::size_t count, const std::filesystem::path& file);
+  /// Current length.
+  hsize_t size() const { return size_; }
+
+ private:
+  Handle dataset_;
+  hid_t type_ = -1;
+  hsize_t size_ = 0;
+  std::string name_;
+};
+
+}  // namespace rubble::hdf5

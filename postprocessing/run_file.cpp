@@ -1,0 +1,339 @@
+#include "postprocessing/run_file.hpp"
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <set>
+#include <stdexcept>
+
+#include "postprocessing/hdf5_io.hpp"
+
+#ifndef RUBBLE_VERSION
+#define RUBBLE_VERSION "unknown"
+#endif
+
+namespace rubble {
+namespace {
+
+using hdf5::Handle;
+namespace fs = std::filesystem;
+
+std::string utc_now_iso8601() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  std::array<char, 32> text{};
+  std::strftime(text.data(), text.size(), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text.data();
+}
+
+/// Flattens n 3-vectors into an n x 3 row-major array.
+std::vector<double> flatten(std::span<const Vec3> vectors) {
+  std::vector<double> flat;
+  flat.reserve(3 * vectors.size());
+  for (const Vec3& v : vectors) flat.insert(flat.end(), {v.x(), v.y(), v.z()});
+  return flat;
+}
+
+void write_vec3s(hid_t parent, const std::string& name, std::span<const Vec3> vectors, const fs::path& file) {
+  const std::array<hsize_t, 2> dims{vectors.size(), 3};
+  hdf5::write_doubles(parent, name, flatten(vectors), dims, file);
+}
+
+void write_column(hid_t parent, const std::string& name, std::span<const double> values, const fs::path& file) {
+  const std::array<hsize_t, 1> dims{values.size()};
+  hdf5::write_doubles(parent, name, values, dims, file);
+}
+
+void write_model(hid_t file_id, const Model& model, const fs::path& file) {
+  Handle group = hdf5::create_group(file_id, "model", file);
+  const hid_t g = group.get();
+  const std::size_t n = model.body_count();
+  hdf5::write_attribute(g, "body_count", static_cast<std::int64_t>(n), file);
+  std::int64_t grains = 0;
+  for (std::size_t i = 0; i < n; ++i) grains += model.is_grain(i) ? 1 : 0;
+  hdf5::write_attribute(g, "grain_count", grains, file);
+
+  std::vector<std::int8_t> kind(n);
+  std::vector<std::int32_t> shape_index(n), material(n);
+  std::vector<double> radius(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    kind[i] = static_cast<std::int8_t>(model.shape_kind[i]);
+    shape_index[i] = model.shape_index[i];
+    material[i] = model.material[i];
+    if (model.shape_kind[i] == ShapeKind::sphere) radius[i] = model.sphere_radius(i);
+  }
+  const std::array<hsize_t, 1> dims_n{n};
+  hdf5::write_int8s(g, "body_shape_kind", kind, dims_n, file);
+  hdf5::write_int32s(g, "body_shape_index", shape_index, dims_n, file);
+  hdf5::write_int32s(g, "material", material, dims_n, file);
+  write_column(g, "mass", model.mass, file);
+  write_column(g, "volume", model.volume, file);
+  write_column(g, "bounding_radius", model.bounding_radius, file);
+  write_column(g, "radius", radius, file);
+  write_vec3s(g, "principal_inertia", model.principal_inertia, file);
+
+  // Polyhedra as flat arrays (CSR-like): polyhedron p owns vertices
+  // [vertex_offset[p], vertex_offset[p+1]) and faces [polyhedron_face_offset[p], ...[p+1]);
+  // face f lists face_vertices[face_offset[f] .. face_offset[f+1]), indices local to its polyhedron.
+  {
+    Handle polyhedra = hdf5::create_group(g, "polyhedra", file);
+    std::vector<Vec3> vertices, face_normals;
+    std::vector<std::int64_t> vertex_offset{0}, face_offset{0}, polyhedron_face_offset{0};
+    std::vector<std::int32_t> face_vertices;
+    for (const ConvexPolyhedron& shape : model.polyhedra) {
+      vertices.insert(vertices.end(), shape.vertices.begin(), shape.vertices.end());
+      vertex_offset.push_back(static_cast<std::int64_t>(vertices.size()));
+      for (std::size_t f = 0; f < shape.faces.size(); ++f) {
+        face_vertices.insert(face_vertices.end(), shape.faces[f].begin(), shape.faces[f].end());
+        face_offset.push_back(static_cast<std::int64_t>(face_vertices.size()));
+        face_normals.push_back(f < shape.face_normals.size() ? shape.face_normals[f] : Vec3::Zero());
+      }
+      polyhedron_face_offset.push_back(static_cast<std::int64_t>(face_offset.size() - 1));
+    }
+    write_vec3s(polyhedra.get(), "vertices", vertices, file);
+    const std::array<hsize_t, 1> dims_vo{vertex_offset.size()}, dims_fv{face_vertices.size()},
+        dims_fo{face_offset.size()}, dims_pfo{polyhedron_face_offset.size()};
+    hdf5::write_int64s(polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file);
+    hdf5::write_int32s(polyhedra.get(), "face_vertices", face_vertices, dims_fv, file);
+    hdf5::write_int64s(polyhedra.get(), "face_offset", face_offset, dims_fo, file);
+    hdf5::write_int64s(polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file);
+    write_vec3s(polyhedra.get(), "face_normal", face_normals, file);
+  }
+  {
+    Handle planes = hdf5::create_group(g, "planes", file);
+    std::vector<Vec3> normals;
+    for (const Plane& plane : model.planes) normals.push_back(plane.normal);
+    write_vec3s(planes.get(), "normal", normals, file);
+  }
+  {
+    Handle boxes = hdf5::create_group(g, "boxes", file);
+    std::vector<Vec3> half_extents;
+    for (const Box& box : model.boxes) half_extents.push_back(box.half_extents);
+    write_vec3s(boxes.get(), "half_extents", half_extents, file);
+  }
+  {
+    Handle materials = hdf5::create_group(g, "materials", file);
+    std::vector<std::string> names;
+    std::vector<double> density;
+    for (const Material& m : model.materials) {
+      names.push_back(m.name);
+      density.push_back(m.density);
+    }
+    hdf5::write_strings(materials.get(), "name", names, file);
+    write_column(materials.get(), "density", density, file);
+  }
+  {
+    Handle laws = hdf5::create_group(g, "contact_laws", file);
+    const auto m = static_cast<std::size_t>(model.contact_laws.material_count);
+    std::vector<double> friction(m * m), restitution(m * m);
+    for (std::size_t a = 0; a < m; ++a) {
+      for (std::size_t b = 0; b < m; ++b) {
+        const ContactLaw& law = model.contact_laws.get(static_cast<int>(a), static_cast<int>(b));
+        friction[a * m + b] = law.friction_coefficient;
+        restitution[a * m + b] = law.normal_restitution;
+      }
+    }
+    const std::array<hsize_t, 2> dims{m, m};
+    hdf5::write_doubles(laws.get(), "friction", friction, dims, file);
+    hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file);
+  }
+}
+
+}  // namespace
+
+/// The open file, its series columns and the rows not yet written.
+struct RunFile::Impl {
+  fs::path path;
+  Handle file;
+  Handle series_group;
+  Handle stage_group;
+  Handle snapshots_group;
+  std::vector<std::string> stage_names;
+  // One column per series dataset, in the order of SeriesRow's fields.
+  std::vector<hdf5::ExtendableColumn> columns;        // step .. wall_seconds
+  std::vector<hdf5::ExtendableColumn> stage_columns;  // one per stage
+  // Buffered rows, column by column.
+  std::vector<std::int64_t> step, contacts, active_contacts;
+  std::vector<int> iterations;
+  std::vector<double> time, kinetic_energy, residual, wall_seconds;
+  std::vector<std::vector<double>> stage_seconds;
+  std::int64_t rows = 0;
+  std::int64_t snapshots = 0;
+  std::size_t body_count = 0;  // of the model: every snapshot has this many bodies
+
+  void write_buffered_rows() {
+    const std::size_t count = step.size();
+    if (count == 0) return;
+    columns[0].append(step.data(), count, path);
+    columns[1].append(time.data(), count, path);
+    columns[2].append(kinetic_energy.data(), count, path);
+    columns[3].append(contacts.data(), count, path);
+    columns[4].append(active_contacts.data(), count, path);
+    columns[5].append(iterations.data(), count, path);
+    columns[6].append(residual.data(), count, path);
+    columns[7].append(wall_seconds.data(), count, path);
+    for (std::size_t s = 0; s < stage_columns.size(); ++s) stage_columns[s].append(stage_seconds[s].data(), count, path);
+    for (auto* column : {&step, &contacts, &active_contacts}) column->clear();
+    for (auto* column : {&time, &kinetic_energy, &residual, &wall_seconds}) column->clear();
+    iterations.clear();
+    for (auto& column : stage_seconds) column.clear();
+  }
+};
+
+RunFile::RunFile(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RunFile::RunFile(RunFile&&) noexcept = default;
+
+RunFile& RunFile::operator=(RunFile&& other) noexcept {
+  if (this != &other) {
+    RunFile closing(std::move(*this));  // flushed and closed at the end of this scope
+    impl_ = std::move(other.impl_);
+  }
+  return *this;
+}
+
+RunFile::~RunFile() {
+  if (!impl_) return;
+  try {
+    flush();
+  } catch (const std::exception& error) {
+    // A destructor must not throw; the run loop calls flush() itself to see errors.
+    std::fprintf(stderr, "rubble: run file not flushed on close: %s\n", error.what());
+  }
+}
+
+RunFile RunFile::create(const fs::path& path, const Model& model, std::string_view scene_text,
+                        std::span<const std::string_view> stage_names) {
+  std::set<std::string_view> unique_names;
+  for (std::string_view name : stage_names) {
+    if (name.empty() || name.find_first_of("/.") != std::string_view::npos || !unique_names.insert(name).second) {
+      throw std::invalid_argument(path.string() + ": bad stage name '" + std::string(name) +
+                                  "' (expected unique, non-empty names without '/' or '.')");
+    }
+  }
+  const hdf5::QuietErrors quiet;
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->body_count = model.body_count();
+  impl->file = hdf5::create_file(path);
+  const hid_t root = impl->file.get();
+
+  hdf5::write_attribute(root, "format", run_file_format, path);
+  hdf5::write_attribute(root, "format_version", static_cast<std::int64_t>(run_file_format_version), path);
+  hdf5::write_attribute(root, "rubble_version", std::string_view(RUBBLE_VERSION), path);
+  hdf5::write_attribute(root, "created", std::string_view(utc_now_iso8601()), path);
+  hdf5::write_string(root, "scene", scene_text, path);
+  write_model(root, model, path);
+
+  impl->series_group = hdf5::create_group(root, "series", path);
+  const hid_t series = impl->series_group.get();
+  constexpr hsize_t chunk = 1024;
+  impl->columns.emplace_back(series, "step", H5T_NATIVE_INT64, chunk, path);
+  impl->columns.emplace_back(series, "time", H5T_NATIVE_DOUBLE, chunk, path);
+  impl->columns.emplace_back(series, "kinetic_energy", H5T_NATIVE_DOUBLE, chunk, path);
+  impl->columns.emplace_back(series, "contacts", H5T_NATIVE_INT64, chunk, path);
+  impl->columns.emplace_back(series, "active_contacts", H5T_NATIVE_INT64, chunk, path);
+  impl->columns.emplace_back(series, "iterations", H5T_NATIVE_INT, chunk, path);
+  impl->columns.emplace_back(series, "residual", H5T_NATIVE_DOUBLE, chunk, path);
+  impl->columns.emplace_back(series, "wall_seconds", H5T_NATIVE_DOUBLE, chunk, path);
+  impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
+  for (std::string_view name : stage_names) {
+    impl->stage_names.emplace_back(name);
+    impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, chunk, path);
+  }
+  hdf5::write_attribute(impl->stage_group.get(), "stage_order", std::span<const std::string>(impl->stage_names), path);
+  impl->stage_seconds.resize(stage_names.size());
+  impl->snapshots_group = hdf5::create_group(root, "snapshots", path);
+  hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
+  return RunFile(std::move(impl));
+}
+
+void RunFile::append_series(const SeriesRow& row) {
+  Impl& f = *impl_;
+  if (row.stage_seconds.size() != f.stage_names.size()) {
+    throw std::invalid_argument(f.path.string() + ": series row has " + std::to_string(row.stage_seconds.size()) +
+                                " stage times, the file has " + std::to_string(f.stage_names.size()) + " stages");
+  }
+  f.step.push_back(row.step);
+  f.time.push_back(row.time);
+  f.kinetic_energy.push_back(row.kinetic_energy);
+  f.contacts.push_back(row.contacts);
+  f.active_contacts.push_back(row.active_contacts);
+  f.iterations.push_back(row.iterations);
+  f.residual.push_back(row.residual);
+  f.wall_seconds.push_back(row.wall_seconds);
+  for (std::size_t s = 0; s < f.stage_names.size(); ++s) f.stage_seconds[s].push_back(row.stage_seconds[s]);
+  ++f.rows;
+  if (f.step.size() >= series_buffer_rows) {
+    const hdf5::QuietErrors quiet;
+    f.write_buffered_rows();
+  }
+}
+
+void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
+  Impl& f = *impl_;
+  const hdf5::QuietErrors quiet;
+  std::array<char, 16> name{};
+  std::snprintf(name.data(), name.size(), "%06lld", static_cast<long long>(f.snapshots));
+  Handle group = hdf5::create_group(f.snapshots_group.get(), name.data(), f.path);
+  const hid_t g = group.get();
+  hdf5::write_attribute(g, "time", state.time, f.path);
+  hdf5::write_attribute(g, "step", state.step, f.path);
+
+  const std::size_t n = state.body_count();
+  if (n != f.body_count || state.orientation.size() != n || state.velocity.size() != n || state.angular_velocity.size() != n) {
+    throw std::invalid_argument(f.path.string() + ": snapshot of a state with " + std::to_string(n) +
+                                " bodies (or arrays of different sizes), the model has " + std::to_string(f.body_count));
+  }
+  write_vec3s(g, "position", state.position, f.path);
+  std::vector<double> orientation;
+  orientation.reserve(4 * n);
+  for (const Quat& q : state.orientation) orientation.insert(orientation.end(), {q.w(), q.x(), q.y(), q.z()});
+  const std::array<hsize_t, 2> dims_q{state.orientation.size(), 4};
+  hdf5::write_doubles(g, "orientation", orientation, dims_q, f.path);
+  write_vec3s(g, "velocity", state.velocity, f.path);
+  write_vec3s(g, "angular_velocity", state.angular_velocity, f.path);
+
+  const std::size_t c = contacts.size();
+  std::vector<std::int32_t> body_a(c), body_b(c);
+  std::vector<std::int8_t> status(c);
+  std::vector<double> gap(c);
+  std::vector<Vec3> point(c), normal(c), tangent_t(c), tangent_s(c), impulse(c);
+  for (std::size_t k = 0; k < c; ++k) {
+    const Contact& contact = contacts[k];
+    body_a[k] = static_cast<std::int32_t>(contact.id.body_a);
+    body_b[k] = static_cast<std::int32_t>(contact.id.body_b);
+    status[k] = static_cast<std::int8_t>(contact.status);
+    gap[k] = contact.gap;
+    point[k] = contact.point;
+    normal[k] = contact.frame.col(0);
+    tangent_t[k] = contact.frame.col(1);
+    tangent_s[k] = contact.frame.col(2);
+    impulse[k] = contact.impulse;
+  }
+  const std::array<hsize_t, 1> dims_c{c};
+  hdf5::write_int32s(g, "contact_body_a", body_a, dims_c, f.path);
+  hdf5::write_int32s(g, "contact_body_b", body_b, dims_c, f.path);
+  write_vec3s(g, "contact_point", point, f.path);
+  write_vec3s(g, "contact_normal", normal, f.path);
+  write_vec3s(g, "contact_tangent_t", tangent_t, f.path);
+  write_vec3s(g, "contact_tangent_s", tangent_s, f.path);
+  write_vec3s(g, "contact_impulse", impulse, f.path);
+  hdf5::write_doubles(g, "contact_gap", gap, dims_c, f.path);
+  hdf5::write_int8s(g, "contact_status", status, dims_c, f.path);
+  ++f.snapshots;
+}
+
+void RunFile::flush() {
+  Impl& f = *impl_;
+  const hdf5::QuietErrors quiet;
+  f.write_buffered_rows();
+  hdf5::check(H5Fflush(f.file.get(), H5F_SCOPE_LOCAL), f.path, "cannot flush");
+}
+
+const fs::path& RunFile::path() const { return impl_->path; }
+std::int64_t RunFile::snapshot_count() const { return impl_->snapshots; }
+std::int64_t RunFile::series_rows() const { return impl_->rows; }
+
+}  // namespace rubble

@@ -1,0 +1,82 @@
+#pragma once
+// The HDF5 run file: what a run writes (the model, the scene text, one row of the per-step series
+// per step, state + contact snapshots) and what post-processing reads back. The layout is
+// documented in docs/output-format.md; that document and run_file.cpp must stay in step.
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "contact_detection/contact.hpp"
+#include "core/model.hpp"
+#include "core/state.hpp"
+
+namespace rubble {
+
+/// Identifies the layout in the file's root attributes; bump format_version on any change.
+inline constexpr std::string_view run_file_format = "rubble-run";
+/// Version of the layout written by RunFile (docs/output-format.md).
+inline constexpr int run_file_format_version = 1;
+
+/// One row of the per-step series (/series in the run file).
+struct SeriesRow {
+  std::int64_t step = 0;             ///< number of steps taken
+  double time = 0.0;                 ///< s, simulated time at the end of the step
+  double kinetic_energy = 0.0;       ///< J, total (translation + rotation) over all bodies
+  std::int64_t contacts = 0;         ///< contact points found (gap < alert distance)
+  std::int64_t active_contacts = 0;  ///< contacts in the solver's problem
+  int iterations = 0;                ///< NLGS sweeps done
+  double residual = 0.0;             ///< NLGS residual at exit
+  double wall_seconds = 0.0;         ///< wall time of the whole step, s
+  /// Wall time of each stage, s, in the order of the stage names given to RunFile::create.
+  /// A view: the caller's array must live until append_series returns (it is copied).
+  std::span<const double> stage_seconds;
+};
+
+/// An open HDF5 run file being written (RAII: the file is flushed and closed on destruction).
+/// Move-only. Every HDF5 failure (cannot create the file, disk full, ...) throws
+/// std::runtime_error naming the file; the destructor never throws (it reports on stderr).
+class RunFile {
+ public:
+  /// Creates (truncates) the file and writes the root attributes, /scene and /model.
+  /// `scene_text` is the scene as TOML, stored verbatim so that the run can be reproduced.
+  /// `stage_names` names the columns of SeriesRow::stage_seconds (/series/stage_seconds/<name>);
+  /// names must be non-empty, unique and free of '/' and '.'.
+  static RunFile create(const std::filesystem::path& path, const Model& model, std::string_view scene_text,
+                        std::span<const std::string_view> stage_names);
+
+  RunFile(RunFile&&) noexcept;             ///< takes over the open file
+  RunFile& operator=(RunFile&&) noexcept;  ///< closes this file (flushing it), takes over the other
+  RunFile(const RunFile&) = delete;
+  RunFile& operator=(const RunFile&) = delete;
+  ~RunFile();  ///< flushes buffered rows and closes the file; errors go to stderr
+
+  /// Buffers one row; rows reach the file every series_buffer_rows rows and on flush().
+  /// Throws std::invalid_argument if row.stage_seconds does not match the stage names.
+  void append_series(const SeriesRow& row);
+  /// Writes /snapshots/NNNNNN (NNNNNN = number of snapshots written before, 6 digits) with the
+  /// state of every body and every contact point of the list.
+  void write_snapshot(const State& state, const ContactList& contacts);
+  /// Writes the buffered series rows and flushes HDF5's buffers to disk.
+  void flush();
+
+  /// The file's path.
+  const std::filesystem::path& path() const;
+  /// Snapshots written so far.
+  std::int64_t snapshot_count() const;
+  /// Series rows appended so far (written or buffered).
+  std::int64_t series_rows() const;
+
+  /// Rows kept in memory between two writes of the series.
+  static constexpr std::size_t series_buffer_rows = 1000;
+
+ private:
+  struct Impl;
+  explicit RunFile(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rubble
