@@ -1,0 +1,249 @@
+// `rubble gravity IN.h5 [--method tree|direct] [--theta 0.5] [--order 2] [--out OUT.h5] ...`
+// Reads `positions` (N x 3) and `masses` (N) from an HDF5 file, computes the self-gravity field
+// with rubble::gravity, optionally writes `accelerations` (N x 3) and `potential` (N) to OUT.h5,
+// and prints one JSON line (N, method, theta, order, threads, build/walk/total seconds).
+// Invalid input -> message on stderr naming the file and the problem, exit code 2.
+
+#include <hdf5.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "apps/commands.hpp"
+#include "gravity/gravity.hpp"
+
+namespace rubble::apps {
+namespace {
+
+struct GravityArguments {
+  std::string input;
+  std::string output;
+  std::string method = "tree";
+  double theta = 0.5;
+  int order = 2;
+  double G = 6.674e-11;
+  double softening = 0.0;
+  int leaf_size = 0;   // 0: library default
+  int group_size = 0;  // 0: library default
+  int threads = 0;     // 0: OpenMP default
+};
+
+/// Invalid input: reported on stderr, exit code 2.
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Owns an HDF5 identifier and closes it with the matching H5*close function.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+/// HDF5 prints its own error stack by default; the command reports errors itself. Restores the
+/// previous handler on scope exit.
+class QuietHdf5 {
+ public:
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
+  QuietHdf5(const QuietHdf5&) = delete;
+  QuietHdf5& operator=(const QuietHdf5&) = delete;
+
+ private:
+  H5E_auto2_t func_ = nullptr;
+  void* data_ = nullptr;
+};
+
+/// Reads a numeric dataset as doubles and returns its dimensions. Throws BadInput.
+std::vector<double> read_dataset(hid_t file, const std::string& path, const std::string& name,
+                                 std::vector<hsize_t>& dims) {
+  if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0)
+    throw BadInput(path + ": missing dataset '" + name + "'");
+  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!ds.valid()) throw BadInput(path + ": '" + name + "' is not a dataset");
+  Handle type(H5Dget_type(ds.get()), H5Tclose);
+  const H5T_class_t cls = H5Tget_class(type.get());
+  if (cls != H5T_FLOAT && cls != H5T_INTEGER)
+    throw BadInput(path + ": dataset '" + name + "' is not numeric");
+  Handle space(H5Dget_space(ds.get()), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0) throw BadInput(path + ": cannot read the shape of dataset '" + name + "'");
+  dims.assign(static_cast<std::size_t>(rank), 0);
+  if (rank > 0) H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  hsize_t count = 1;
+  for (hsize_t d : dims) count *= d;
+  std::vector<double> values(static_cast<std::size_t>(count));
+  if (count > 0 &&
+      H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+    throw BadInput(path + ": cannot read dataset '" + name + "' as double precision numbers");
+  return values;
+}
+
+std::string shape_string(const std::vector<hsize_t>& dims) {
+  std::string s = "(";
+  for (std::size_t i = 0; i < dims.size(); ++i) s += (i ? ", " : "") + std::to_string(dims[i]);
+  return s + (dims.size() == 1 ? ",)" : ")");
+}
+
+void write_dataset(hid_t file, const std::string& path, const char* name,
+                   const std::vector<hsize_t>& dims, const std::vector<double>& values) {
+  Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
+  Handle ds(H5Dcreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                       H5P_DEFAULT),
+            H5Dclose);
+  if (!ds.valid() || (!values.empty() && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
+                                                  H5P_DEFAULT, values.data()) < 0))
+    throw std::runtime_error(path + ": cannot write dataset '" + name + "'");
+}
+
+void write_attribute(hid_t file, const char* name, double value) {
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attr(H5Acreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (attr.valid()) H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value);
+}
+
+int gravity_command(const GravityArguments& args) {
+  const QuietHdf5 quiet;
+  gravity::GravityOptions options;
+  try {
+    if (args.method == "tree") options.method = gravity::Method::tree;
+    else if (args.method == "direct") options.method = gravity::Method::direct;
+    else throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
+    if (!(args.theta > 0) || !std::isfinite(args.theta))
+      throw BadInput("--theta must be a finite number > 0, got " + std::to_string(args.theta));
+    if (args.order != 1 && args.order != 2)
+      throw BadInput("--order must be 1 (monopole) or 2 (quadrupole), got " + std::to_string(args.order));
+    if (!std::isfinite(args.G) || !(args.G > 0)) throw BadInput("--G must be a finite number > 0");
+    if (!(args.softening >= 0) || !std::isfinite(args.softening))
+      throw BadInput("--softening must be a finite length >= 0");
+    if (args.leaf_size < 0 || args.group_size < 0 || args.threads < 0)
+      throw BadInput("--leaf-size, --group-size and --threads must be >= 0 (0: default)");
+    options.theta = args.theta;
+    options.order = args.order;
+    options.G = args.G;
+    if (args.softening > 0) options.softening = {gravity::Softening::Kind::plummer, args.softening};
+    if (args.leaf_size > 0) options.leaf_size = args.leaf_size;
+    if (args.group_size > 0) options.group_size = args.group_size;
+
+    // ---- input
+    const std::string& in = args.input;
+    std::error_code ec;
+    if (!std::filesystem::exists(in, ec)) throw BadInput(in + ": no such file");
+    if (H5Fis_hdf5(in.c_str()) <= 0) throw BadInput(in + ": not an HDF5 file");
+    Handle file(H5Fopen(in.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!file.valid()) throw BadInput(in + ": cannot open the HDF5 file");
+    std::vector<hsize_t> pdims, mdims;
+    const std::vector<double> positions = read_dataset(file.get(), in, "positions", pdims);
+    const std::vector<double> masses = read_dataset(file.get(), in, "masses", mdims);
+    if (pdims.size() != 2 || pdims[1] != 3)
+      throw BadInput(in + ": dataset 'positions' must have shape (N, 3), got " + shape_string(pdims));
+    if (mdims.size() != 1 || mdims[0] != pdims[0])
+      throw BadInput(in + ": dataset 'masses' must have shape (" + std::to_string(pdims[0]) +
+                     ",) to match 'positions', got " + shape_string(mdims));
+    for (std::size_t i = 0; i < masses.size(); ++i) {
+      if (std::isnan(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is NaN");
+      if (!std::isfinite(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is infinite");
+      if (masses[i] < 0)
+        throw BadInput(in + ": masses[" + std::to_string(i) + "] is negative (" + std::to_string(masses[i]) + ")");
+    }
+    for (std::size_t i = 0; i < positions.size(); ++i)
+      if (!std::isfinite(positions[i]))
+        throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) +
+                       "] is not finite");
+
+    // ---- compute
+    if (args.threads > 0) omp_set_num_threads(args.threads);
+    const std::size_t n = masses.size();
+    std::vector<double> acc(3 * n), pot(n);
+    const auto t0 = std::chrono::steady_clock::now();
+    gravity::FieldTimings timings;
+    try {
+      timings = gravity::compute_field(options, positions, masses, acc, pot);
+    } catch (const gravity::GravityError& e) {
+      throw BadInput(in + ": " + e.what());
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    // ---- output
+    if (!args.output.empty()) {
+      Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+      if (!out.valid()) {
+        std::cerr << "rubble gravity: error: " << args.output << ": cannot create the output file\n";
+        return exit_failure;
+      }
+      try {
+        write_dataset(out.get(), args.output, "accelerations", {n, 3}, acc);
+        write_dataset(out.get(), args.output, "potential", {n}, pot);
+        write_attribute(out.get(), "G", options.G);
+        write_attribute(out.get(), "theta", options.theta);
+        write_attribute(out.get(), "order", options.order);
+        write_attribute(out.get(), "softening_length", args.softening);
+      } catch (const std::runtime_error& e) {
+        std::cerr << "rubble gravity: error: " << e.what() << "\n";
+        return exit_failure;
+      }
+    }
+    nlohmann::json line = {{"N", n},
+                           {"method", gravity::to_string(options.method)},
+                           {"theta", options.theta},
+                           {"order", options.order},
+                           {"G", options.G},
+                           {"softening", args.softening},
+                           {"threads", omp_get_max_threads()},
+                           {"build_seconds", timings.build_seconds},
+                           {"walk_seconds", timings.walk_seconds},
+                           {"seconds", seconds},
+                           {"input", in},
+                           {"output", args.output}};
+    std::cout << line.dump() << std::endl;
+  } catch (const BadInput& e) {
+    std::cerr << "rubble gravity: error: " << e.what() << "\n";
+    return exit_bad_input;
+  }
+  return exit_ok;
+}
+
+}  // namespace
+
+void register_gravity_command(CLI::App& app) {
+  auto args = std::make_shared<GravityArguments>();
+  CLI::App* cmd = app.add_subcommand(
+      "gravity", "Self-gravity of N point masses from an HDF5 file (datasets positions (N,3), masses (N))");
+  cmd->add_option("input", args->input, "HDF5 file with datasets 'positions' (N x 3) and 'masses' (N)")->required();
+  cmd->add_option("--method", args->method, "tree (Barnes-Hut) or direct (exact O(N^2) sum)")->capture_default_str();
+  cmd->add_option("--theta", args->theta, "Opening angle of the tree (> 0)")->capture_default_str();
+  cmd->add_option("--order", args->order, "Multipole order: 1 monopole, 2 quadrupole")->capture_default_str();
+  cmd->add_option("--out", args->output, "Output HDF5 file: datasets 'accelerations' (N x 3), 'potential' (N)");
+  cmd->add_option("--G", args->G, "Gravitational constant (sets the unit system)")->capture_default_str();
+  cmd->add_option("--softening", args->softening, "Plummer softening length (0: none)")->capture_default_str();
+  cmd->add_option("--leaf-size", args->leaf_size, "Max particles per tree leaf (0: library default)");
+  cmd->add_option("--group-size", args->group_size, "Max targets per tree walk group (0: library default)");
+  cmd->add_option("--threads", args->threads, "OpenMP threads (0: OMP_NUM_THREADS or all cores)");
+  cmd->callback([args] {
+    const int code = gravity_command(*args);
+    if (code != exit_ok) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace rubble::apps
