@@ -1,0 +1,1206 @@
+#include "simulation/scene_file.hpp"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+#include <toml++/toml.h>
+
+#include "core/units.hpp"
+#include "preprocessing/packing.hpp"
+
+namespace rubble {
+
+SceneError::SceneError(std::string file_, int line_, std::string key_, std::string message_)
+    : std::runtime_error(file_ + (line_ > 0 ? ":" + std::to_string(line_) : std::string()) + ": " +
+                         (key_.empty() ? std::string() : key_ + ": ") + message_),
+      file(std::move(file_)),
+      line(line_),
+      key(std::move(key_)),
+      message(std::move(message_)) {}
+
+namespace {
+
+constexpr double infinity = std::numeric_limits<double>::infinity();
+
+/// Grains may start overlapping a wall or each other by at most this fraction of the (smaller)
+/// radius: the solver's penetration correction removes such small overlaps (e.g. a settled pile
+/// written back with scene_to_toml), larger ones are mistakes in the scene.
+constexpr double allowed_initial_overlap = 0.01;
+
+/// Shortest text that reads back to the same double (std::to_chars), always with a '.' or an
+/// exponent so that TOML reads it as a float.
+std::string format_number(double x) {
+  if (std::isnan(x)) return "nan";
+  if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x);
+  std::string text(buffer, result.ptr);
+  if (text.find_first_of(".e") == std::string::npos) text += ".0";
+  return text;
+}
+
+/// Shortest text of a number for messages ("-1", "0.5", "nan").
+std::string show(double x) {
+  if (std::isnan(x)) return "nan";
+  if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x);
+  return std::string(buffer, result.ptr);
+}
+
+/// A computed number for messages, to 6 significant digits.
+std::string show_short(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", x);
+  return buffer;
+}
+
+/// A closed, open or half-open interval of allowed values, with its description for messages.
+struct Range {
+  double low = -infinity;
+  double high = infinity;
+  bool low_closed = true;
+  bool high_closed = true;
+
+  bool contains(double x) const {
+    return (low_closed ? x >= low : x > low) && (high_closed ? x <= high : x < high);
+  }
+  std::string describe() const {
+    const bool has_low = low > -infinity;
+    const bool has_high = high < infinity;
+    if (has_low && has_high) {
+      return "in " + std::string(low_closed ? "[" : "(") + show(low) + ", " + show(high) +
+             (high_closed ? "]" : ")");
+    }
+    if (has_low) return std::string(low_closed ? ">= " : "> ") + show(low);
+    if (has_high) return std::string(high_closed ? "<= " : "< ") + show(high);
+    return "";
+  }
+};
+
+Range positive() { return Range{0.0, infinity, false, true}; }
+Range non_negative() { return Range{0.0, infinity, true, true}; }
+Range any_number() { return Range{}; }
+Range closed(double a, double b) { return Range{a, b, true, true}; }
+Range open(double a, double b) { return Range{a, b, false, false}; }
+
+/// "a number > 0" etc.
+std::string expected_number(const Range& range) {
+  const std::string bounds = range.describe();
+  return bounds.empty() ? "a finite number" : "a finite number " + bounds;
+}
+
+/// What a TOML node holds, for "got ..." in messages.
+std::string describe_node(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::string: return "the string \"" + std::string(node.as_string()->get()) + "\"";
+    case toml::node_type::integer: return std::to_string(node.as_integer()->get());
+    case toml::node_type::floating_point: return show(node.as_floating_point()->get());
+    case toml::node_type::boolean: return node.as_boolean()->get() ? "true" : "false";
+    case toml::node_type::array: return "an array of " + std::to_string(node.as_array()->size()) + " elements";
+    case toml::node_type::table: return "a table";
+    default: return "a date/time";
+  }
+}
+
+int line_of(const toml::node* node) { return node ? static_cast<int>(node->source().begin.line) : 0; }
+
+/// Levenshtein distance, for "did you mean" hints on misspelt keys.
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+/// A TOML table being read, with its dotted path for messages.
+class TableReader {
+ public:
+  TableReader(const std::string& file, const toml::table& table, std::string path, const toml::node* anchor)
+      : file_(file), table_(table), path_(std::move(path)), anchor_(anchor) {}
+
+  const std::string& path() const { return path_; }
+  const toml::table& table() const { return table_; }
+  /// Dotted path of a key of this table.
+  std::string key_path(std::string_view key) const {
+    return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+  }
+  /// Line of this table (0 for the root, whose "line" would point nowhere useful).
+  const toml::node* anchor() const { return anchor_; }
+
+  [[noreturn]] void fail(const toml::node* at, const std::string& key, const std::string& message) const {
+    throw SceneError(file_, line_of(at), key, message);
+  }
+  [[noreturn]] void fail_key(std::string_view key, const std::string& message) const {
+    const toml::node* node = table_.get(key);
+    fail(node ? node : anchor_, key_path(key), message);
+  }
+  [[noreturn]] void fail_table(const std::string& message) const { fail(anchor_, path_, message); }
+
+  /// Rejects keys not in `allowed` (typos!), suggesting the closest allowed key.
+  void allow_only(std::initializer_list<std::string_view> allowed, std::string_view context = {}) const {
+    for (const auto& [key, node] : table_) {
+      const std::string_view name = key.str();
+      if (std::find(allowed.begin(), allowed.end(), name) != allowed.end()) continue;
+      std::string message = "unknown key";
+      if (!context.empty()) message += " " + std::string(context);
+      std::string_view best;
+      std::size_t best_distance = 3;
+      for (std::string_view candidate : allowed) {
+        const std::size_t d = edit_distance(name, candidate);
+        if (d < best_distance) {
+          best_distance = d;
+          best = candidate;
+        }
+      }
+      if (!best.empty()) {
+        message += " (did you mean \"" + std::string(best) + "\"?)";
+      } else {
+        message += " (expected one of:";
+        for (std::string_view candidate : allowed) message += " " + std::string(candidate);
+        message += ")";
+      }
+      fail(&node, key_path(name), message);
+    }
+  }
+
+  bool has(std::string_view key) const { return table_.contains(key); }
+  const toml::node* get(std::string_view key) const { return table_.get(key); }
+
+  [[noreturn]] void missing(std::string_view key, const std::string& expected) const {
+    fail(anchor_, key_path(key), "missing required key (expected " + expected + ")");
+  }
+
+  /// A number checked against `range`; integers are accepted as numbers.
+  double number_of(const toml::node& node, const std::string& key, const Range& range) const {
+    double value = 0;
+    if (const auto* f = node.as_floating_point()) {
+      value = f->get();
+    } else if (const auto* i = node.as_integer()) {
+      value = static_cast<double>(i->get());
+    } else {
+      fail(&node, key, "expected " + expected_number(range) + ", got " + describe_node(node));
+    }
+    if (!std::isfinite(value) || !range.contains(value)) {
+      fail(&node, key, "expected " + expected_number(range) + ", got " + show(value));
+    }
+    return value;
+  }
+  std::optional<double> optional_number(std::string_view key, const Range& range) const {
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    return number_of(*node, key_path(key), range);
+  }
+  double number(std::string_view key, const Range& range) const {
+    const auto value = optional_number(key, range);
+    if (!value) missing(key, expected_number(range));
+    return *value;
+  }
+  double number_or(std::string_view key, double fallback, const Range& range) const {
+    return optional_number(key, range).value_or(fallback);
+  }
+
+  /// An integer in [low, high]; a float with an integral value (1e6) is accepted too.
+  std::optional<std::int64_t> optional_integer(std::string_view key, std::int64_t low, std::int64_t high) const {
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    const std::string expected = "an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
+    std::int64_t value = 0;
+    if (const auto* i = node->as_integer()) {
+      value = i->get();
+    } else if (const auto* f = node->as_floating_point();
+               f && std::isfinite(f->get()) && std::floor(f->get()) == f->get() && std::abs(f->get()) < 9e18) {
+      value = static_cast<std::int64_t>(f->get());
+    } else {
+      fail(node, key_path(key), "expected " + expected + ", got " + describe_node(*node));
+    }
+    if (value < low || value > high) {
+      fail(node, key_path(key), "expected " + expected + ", got " + std::to_string(value));
+    }
+    return value;
+  }
+  std::int64_t integer(std::string_view key, std::int64_t low, std::int64_t high) const {
+    const auto value = optional_integer(key, low, high);
+    if (!value) missing(key, "an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]");
+    return *value;
+  }
+  std::int64_t integer_or(std::string_view key, std::int64_t fallback, std::int64_t low, std::int64_t high) const {
+    return optional_integer(key, low, high).value_or(fallback);
+  }
+
+  bool boolean_or(std::string_view key, bool fallback) const {
+    const toml::node* node = get(key);
+    if (!node) return fallback;
+    if (const auto* b = node->as_boolean()) return b->get();
+    fail(node, key_path(key), "expected true or false, got " + describe_node(*node));
+  }
+
+  std::optional<std::string> optional_string(std::string_view key) const {
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    if (const auto* s = node->as_string()) return std::string(s->get());
+    fail(node, key_path(key), "expected a string, got " + describe_node(*node));
+  }
+  std::string string(std::string_view key) const {
+    const auto value = optional_string(key);
+    if (!value) missing(key, "a string");
+    return *value;
+  }
+
+  /// One of the listed words.
+  std::optional<std::string> optional_choice(std::string_view key, std::initializer_list<std::string_view> words) const {
+    std::string expected = "one of";
+    for (std::string_view word : words) expected += std::string(word == *words.begin() ? " " : ", ") + "\"" + std::string(word) + "\"";
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    const auto* s = node->as_string();
+    if (!s) fail(node, key_path(key), "expected " + expected + ", got " + describe_node(*node));
+    const std::string value(s->get());
+    if (std::find(words.begin(), words.end(), value) == words.end()) {
+      fail(node, key_path(key), "expected " + expected + ", got \"" + value + "\"");
+    }
+    return value;
+  }
+  std::string choice(std::string_view key, std::initializer_list<std::string_view> words) const {
+    const auto value = optional_choice(key, words);
+    if (!value) {
+      std::string expected = "one of";
+      for (std::string_view word : words) expected += std::string(word == *words.begin() ? " " : ", ") + "\"" + std::string(word) + "\"";
+      missing(key, expected);
+    }
+    return *value;
+  }
+
+  /// An array of N finite numbers.
+  template <int N>
+  std::optional<Eigen::Matrix<double, N, 1>> optional_vector(std::string_view key, const Range& range = any_number()) const {
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    const std::string expected = "an array of " + std::to_string(N) + " numbers";
+    const auto* array = node->as_array();
+    if (!array || array->size() != static_cast<std::size_t>(N)) {
+      fail(node, key_path(key), "expected " + expected + ", got " + describe_node(*node));
+    }
+    Eigen::Matrix<double, N, 1> value;
+    for (int i = 0; i < N; ++i) {
+      value[i] = number_of(*array->get(static_cast<std::size_t>(i)),
+                           key_path(key) + "[" + std::to_string(i) + "]", range);
+    }
+    return value;
+  }
+  Vec3 vec3(std::string_view key, const Range& range = any_number()) const {
+    const auto value = optional_vector<3>(key, range);
+    if (!value) missing(key, "an array of 3 numbers [x, y, z]");
+    return *value;
+  }
+  Vec3 vec3_or(std::string_view key, const Vec3& fallback) const {
+    return optional_vector<3>(key).value_or(fallback);
+  }
+  /// A rotation as a quaternion [w, x, y, z], normalised (must not be zero).
+  Quat orientation_or_identity(std::string_view key) const {
+    const auto value = optional_vector<4>(key);
+    if (!value) return Quat::Identity();
+    const double norm = value->norm();
+    if (!(norm > 1e-12)) fail_key(key, "expected a nonzero quaternion [w, x, y, z], got a zero one");
+    Quat q((*value)[0], (*value)[1], (*value)[2], (*value)[3]);
+    // Leave unit quaternions bit for bit as written, so that written scenes read back exactly.
+    if (std::abs(norm - 1.0) > 1e-15) q.normalize();
+    return q;
+  }
+
+  /// An optional sub-table.
+  std::optional<TableReader> optional_table(std::string_view key) const {
+    const toml::node* node = get(key);
+    if (!node) return std::nullopt;
+    const auto* table = node->as_table();
+    if (!table) fail(node, key_path(key), "expected a table [" + key_path(key) + "], got " + describe_node(*node));
+    return TableReader(file_, *table, key_path(key), node);
+  }
+
+  /// The tables of an array of tables ([[key]] entries), in order.
+  std::vector<TableReader> tables(std::string_view key) const {
+    std::vector<TableReader> result;
+    const toml::node* node = get(key);
+    if (!node) return result;
+    const auto* array = node->as_array();
+    if (!array) {
+      fail(node, key_path(key), "expected an array of tables ([[" + std::string(key) + "]] entries), got " +
+                                    describe_node(*node));
+    }
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      const toml::node* element = array->get(i);
+      const std::string path = key_path(key) + "[" + std::to_string(i) + "]";
+      const auto* table = element->as_table();
+      if (!table) fail(element, path, "expected a table, got " + describe_node(*element));
+      result.emplace_back(file_, *table, path, element);
+    }
+    return result;
+  }
+
+ private:
+  const std::string& file_;
+  const toml::table& table_;
+  std::string path_;
+  const toml::node* anchor_;
+};
+
+/// Where a grain came from, for messages about it.
+struct GrainOrigin {
+  int body_entry = -1;       ///< index in [[bodies]], or -1
+  int generator = -1;        ///< index in [[generators]], or -1
+  std::uint64_t ordinal = 0; ///< grain number within its generator
+  const toml::node* node = nullptr;  ///< the entry's table
+};
+
+/// A grain to add: sphere only for now.
+struct GrainSpec {
+  double radius = 0;
+  int material = 0;
+  Vec3 position = Vec3::Zero();
+  Quat orientation = Quat::Identity();
+  Vec3 velocity = Vec3::Zero();
+  Vec3 angular_velocity = Vec3::Zero();
+  GrainOrigin origin{};
+};
+
+/// A wall to add.
+struct WallSpec {
+  bool is_plane = true;
+  Vec3 position = Vec3::Zero();       ///< plane point or box centre
+  Vec3 normal = Vec3::UnitZ();        ///< unit, plane only
+  Vec3 half_extents = Vec3::Zero();   ///< box only
+  Quat orientation = Quat::Identity();
+  int material = 0;
+  std::string path;
+  const toml::node* node = nullptr;
+};
+
+/// The grain as named after its key: "the grain" for a [[bodies]] entry, "grain N" for a generator's.
+std::string grain_label(const GrainOrigin& origin) {
+  if (origin.body_entry >= 0) return "the grain";
+  return "grain " + std::to_string(origin.ordinal);
+}
+
+/// The grain named in full, for messages about another grain.
+std::string grain_name(const GrainOrigin& origin) {
+  if (origin.body_entry >= 0) return "bodies[" + std::to_string(origin.body_entry) + "]";
+  return "generators[" + std::to_string(origin.generator) + "] (grain " + std::to_string(origin.ordinal) + ")";
+}
+
+std::string grain_key(const GrainOrigin& origin) {
+  if (origin.body_entry >= 0) return "bodies[" + std::to_string(origin.body_entry) + "]";
+  return "generators[" + std::to_string(origin.generator) + "]";
+}
+
+/// [x, y, z] for messages.
+std::string show_vec3(const Vec3& v) {
+  return "[" + show_short(v.x()) + ", " + show_short(v.y()) + ", " + show_short(v.z()) + "]";
+}
+
+/// [x, y, z] as TOML floats.
+std::string format_vec3(const Vec3& v) {
+  return "[" + format_number(v.x()) + ", " + format_number(v.y()) + ", " + format_number(v.z()) + "]";
+}
+
+/// Everything the parser has gathered.
+class SceneParser {
+ public:
+  SceneParser(const std::string& file, const toml::table& root) : file_(file), root_(file, root, "", nullptr) {}
+
+  Scene parse(const std::string& default_name) {
+    root_.allow_only({"name", "seed", "time", "solver", "detection", "gravity", "output", "materials",
+                      "contact_laws", "default_contact_law", "walls", "bodies", "generators"},
+                     "at the top level");
+    scene_.name = root_.optional_string("name").value_or(default_name);
+    scene_.run.seed = static_cast<std::uint64_t>(root_.integer_or("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+    parse_time();
+    parse_solver();
+    parse_detection();
+    parse_gravity();
+    parse_output();
+    parse_materials();
+    parse_contact_laws();
+    parse_walls();
+    parse_bodies();
+    parse_generators();
+    if (grains_.empty()) {
+      root_.fail(nullptr, "", "the scene has no grains: expected at least one [[bodies]] or [[generators]] entry");
+    }
+    check_contact_law_coverage();
+    check_walls_have_an_inside();
+    check_grains_inside_walls();
+    check_grains_do_not_overlap();
+    build();
+    return std::move(scene_);
+  }
+
+ private:
+  void parse_time() {
+    const auto time = root_.optional_table("time");
+    if (!time) root_.fail(nullptr, "time", "missing required table [time] (expected dt and end_time, in s)");
+    time->allow_only({"dt", "theta", "end_time"}, "in [time]");
+    auto& integrator = scene_.run.step.integrator;
+    integrator.time_step = time->number("dt", positive());
+    integrator.theta = time->number_or("theta", 0.5, closed(0.5, 1.0));
+    scene_.run.end_time = time->number("end_time", positive());
+    if (integrator.time_step > scene_.run.end_time) {
+      time->fail_key("dt", "expected dt <= end_time (" + show(scene_.run.end_time) + " s), got " +
+                               show(integrator.time_step));
+    }
+  }
+
+  void parse_solver() {
+    const auto solver = root_.optional_table("solver");
+    if (!solver) return;
+    solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
+                        "max_correction_velocity"},
+                       "in [solver]");
+    auto& options = scene_.run.step.solver;
+    options.tolerance = solver->number_or("tolerance", options.tolerance, positive());
+    options.max_iterations =
+        static_cast<int>(solver->integer_or("max_iterations", options.max_iterations, 1, 100'000'000));
+    options.relaxation = solver->number_or("relaxation", options.relaxation, open(0.0, 2.0));
+    options.warm_start = solver->boolean_or("warm_start", options.warm_start);
+    options.penetration_correction =
+        solver->number_or("penetration_correction", options.penetration_correction, closed(0.0, 1.0));
+    options.max_correction_velocity =
+        solver->number_or("max_correction_velocity", options.max_correction_velocity, non_negative());
+  }
+
+  void parse_detection() {
+    const auto detection = root_.optional_table("detection");
+    if (!detection) return;
+    detection->allow_only({"alert_distance"}, "in [detection]");
+    scene_.run.step.detection.alert_distance = detection->number_or("alert_distance", 0.0, non_negative());
+  }
+
+  void parse_gravity() {
+    auto& gravity = scene_.run.step.gravity;
+    const auto table = root_.optional_table("gravity");
+    if (!table) {
+      gravity.kind = GravitySettings::Kind::none;
+      return;
+    }
+    const std::string type = table->choice("type", {"none", "uniform", "direct", "tree"});
+    if (type == "none") {
+      table->allow_only({"type"}, "for [gravity] type = \"none\"");
+      gravity.kind = GravitySettings::Kind::none;
+    } else if (type == "uniform") {
+      table->allow_only({"type", "acceleration"}, "for [gravity] type = \"uniform\"");
+      gravity.kind = GravitySettings::Kind::uniform;
+      gravity.acceleration = table->vec3("acceleration");
+    } else {
+      const bool tree = type == "tree";
+      if (tree) {
+        table->allow_only({"type", "G", "softening", "theta", "order", "leaf_size", "group_size"},
+                          "for [gravity] type = \"tree\"");
+      } else {
+        table->allow_only({"type", "G", "softening"}, "for [gravity] type = \"direct\"");
+      }
+      gravity.kind = GravitySettings::Kind::self;
+      auto& self = gravity.self_gravity;
+      self.method = tree ? gravity::Method::tree : gravity::Method::direct;
+      self.G = table->number_or("G", units::gravitational_constant, positive());
+      const double softening = table->number_or("softening", 0.0, non_negative());
+      self.softening.kind = softening > 0.0 ? gravity::Softening::Kind::plummer : gravity::Softening::Kind::none;
+      self.softening.length = softening;
+      if (tree) {
+        self.theta = table->number_or("theta", self.theta, Range{0.0, 2.0, false, true});
+        self.order = static_cast<int>(table->integer_or("order", self.order, 1, 2));
+        self.leaf_size = static_cast<int>(table->integer_or("leaf_size", self.leaf_size, 1, 1'000'000));
+        self.group_size = static_cast<int>(table->integer_or("group_size", self.group_size, 1, 1'000'000));
+      }
+    }
+  }
+
+  void parse_output() {
+    const auto output = root_.optional_table("output");
+    if (!output) return;
+    output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk"},
+                       "in [output]");
+    auto& options = scene_.run.output;
+    if (const auto directory = output->optional_string("directory")) {
+      if (directory->empty()) output->fail_key("directory", "expected a folder name, got an empty string");
+      options.directory = *directory;
+    }
+    options.snapshot_every_steps = output->integer_or("snapshot_every_steps", 0, 0, std::numeric_limits<std::int64_t>::max());
+    options.snapshot_interval = output->number_or("snapshot_interval", 0.0, non_negative());
+    if (options.snapshot_every_steps > 0 && options.snapshot_interval > 0.0) {
+      output->fail_key("snapshot_interval",
+                       "expected either snapshot_every_steps or snapshot_interval, not both");
+    }
+    options.progress_interval = output->number_or("progress_interval", options.progress_interval, non_negative());
+    options.write_vtk = output->boolean_or("vtk", options.write_vtk);
+  }
+
+  void parse_materials() {
+    for (const TableReader& entry : root_.tables("materials")) {
+      entry.allow_only({"name", "density"}, "in [[materials]]");
+      const std::string name = entry.string("name");
+      if (name.empty()) entry.fail_key("name", "expected a nonempty material name");
+      if (material_ids_.count(name)) {
+        entry.fail_key("name", "material \"" + name + "\" is defined twice (expected unique names)");
+      }
+      const double density = entry.number("density", positive());
+      material_ids_[name] = static_cast<int>(scene_.model.materials.size());
+      scene_.model.materials.push_back(Material{name, density});
+    }
+  }
+
+  /// Material of a grain or wall: the `material` key, or the only material when there is one.
+  int material_of(const TableReader& entry) {
+    const auto name = entry.optional_string("material");
+    if (!name) {
+      if (scene_.model.materials.size() == 1) return 0;
+      if (scene_.model.materials.empty()) {
+        entry.fail_table("no materials defined: expected a [[materials]] entry with name and density");
+      }
+      entry.missing("material", "the name of a [[materials]] entry (required when there are several)");
+    }
+    const auto it = material_ids_.find(*name);
+    if (it == material_ids_.end()) entry.fail_key("material", "unknown material \"" + *name + "\"" + known_materials());
+    return it->second;
+  }
+
+  std::string known_materials() const {
+    if (material_ids_.empty()) return " (no [[materials]] are defined)";
+    std::string list = " (expected one of:";
+    for (const Material& m : scene_.model.materials) list += " \"" + m.name + "\"";
+    return list + ")";
+  }
+
+  ContactLaw parse_law(const TableReader& entry) const {
+    ContactLaw law;
+    law.friction_coefficient = entry.number("friction", non_negative());
+    law.normal_restitution = entry.number_or("restitution", 0.0, closed(0.0, 1.0));
+    return law;
+  }
+
+  void parse_contact_laws() {
+    const int n = static_cast<int>(scene_.model.materials.size());
+    if (const auto fallback = root_.optional_table("default_contact_law")) {
+      fallback->allow_only({"friction", "restitution"}, "in [default_contact_law]");
+      default_law_ = parse_law(*fallback);
+    }
+    scene_.model.contact_laws.reset(n, default_law_.value_or(ContactLaw{}));
+    law_defined_.assign(static_cast<std::size_t>(n * n), false);
+    for (const TableReader& entry : root_.tables("contact_laws")) {
+      entry.allow_only({"materials", "friction", "restitution"}, "in [[contact_laws]]");
+      const toml::node* node = entry.get("materials");
+      if (!node) entry.missing("materials", "a pair of material names, e.g. [\"rock\", \"rock\"]");
+      const auto* array = node->as_array();
+      if (!array || array->size() != 2 || !array->get(0)->is_string() || !array->get(1)->is_string()) {
+        entry.fail(node, entry.key_path("materials"),
+                   "expected a pair of material names, e.g. [\"rock\", \"rock\"], got " + describe_node(*node));
+      }
+      int ids[2];
+      for (int k = 0; k < 2; ++k) {
+        const std::string name(array->get(static_cast<std::size_t>(k))->as_string()->get());
+        const auto it = material_ids_.find(name);
+        if (it == material_ids_.end()) {
+          entry.fail(node, entry.key_path("materials"), "unknown material \"" + name + "\"" + known_materials());
+        }
+        ids[k] = it->second;
+      }
+      if (law_defined_[static_cast<std::size_t>(ids[0] * n + ids[1])]) {
+        entry.fail(node, entry.key_path("materials"),
+                   "the contact law of this pair is defined twice (expected one entry per pair)");
+      }
+      scene_.model.contact_laws.set(ids[0], ids[1], parse_law(entry));
+      law_defined_[static_cast<std::size_t>(ids[0] * n + ids[1])] = true;
+      law_defined_[static_cast<std::size_t>(ids[1] * n + ids[0])] = true;
+    }
+  }
+
+  void parse_walls() {
+    for (const TableReader& entry : root_.tables("walls")) {
+      WallSpec wall;
+      wall.path = entry.path();
+      wall.node = entry.anchor();
+      const std::string type = entry.choice("type", {"plane", "box"});
+      if (type == "plane") {
+        entry.allow_only({"type", "point", "normal", "material"}, "for a wall of type = \"plane\"");
+        wall.is_plane = true;
+        wall.position = entry.vec3("point");
+        const Vec3 normal = entry.vec3("normal");
+        const double norm = normal.norm();
+        if (!(norm > 1e-12) || !std::isfinite(norm)) {
+          entry.fail_key("normal", "expected a nonzero vector (the side grains live on), got " + show_vec3(normal));
+        }
+        wall.normal = normal / norm;
+      } else {
+        entry.allow_only({"type", "center", "half_extents", "orientation", "material"}, "for a wall of type = \"box\"");
+        wall.is_plane = false;
+        wall.position = entry.vec3("center");
+        wall.half_extents = entry.vec3("half_extents", positive());
+        wall.orientation = entry.orientation_or_identity("orientation");
+      }
+      wall.material = material_of(entry);
+      walls_.push_back(wall);
+    }
+  }
+
+  void parse_bodies() {
+    const auto entries = root_.tables("bodies");
+    for (std::size_t i = 0; i < entries.size(); ++i) {
+      const TableReader& entry = entries[i];
+      const std::string shape = entry.choice("shape", {"sphere", "polyhedron"});
+      if (shape == "polyhedron") {
+        entry.fail_key("shape", "polyhedral grains are not supported in scene files yet (expected \"sphere\")");
+      }
+      entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material"},
+                       "for a body of shape = \"sphere\"");
+      GrainSpec grain;
+      grain.radius = entry.number("radius", positive());
+      grain.position = entry.vec3("position");
+      grain.orientation = entry.orientation_or_identity("orientation");
+      grain.velocity = entry.vec3_or("velocity", Vec3::Zero());
+      grain.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
+      grain.material = material_of(entry);
+      grain.origin.body_entry = static_cast<int>(i);
+      grain.origin.node = entry.anchor();
+      add_grain(grain);
+    }
+  }
+
+  SizeRange parse_sizes(const TableReader& entry) const {
+    SizeRange sizes;
+    sizes.radius_min = entry.number("radius_min", positive());
+    sizes.radius_max = entry.number("radius_max", positive());
+    if (sizes.radius_max < sizes.radius_min) {
+      entry.fail_key("radius_max", "expected radius_max >= radius_min (" + show(sizes.radius_min) +
+                                       "), got " + show(sizes.radius_max));
+    }
+    const std::string law = entry.optional_choice("distribution", {"uniform_radius", "uniform_volume_fraction"})
+                                .value_or("uniform_radius");
+    sizes.distribution =
+        law == "uniform_radius" ? SizeDistribution::uniform_radius : SizeDistribution::uniform_volume_fraction;
+    return sizes;
+  }
+
+  void parse_generators() {
+    const auto entries = root_.tables("generators");
+    const auto max_count = static_cast<std::int64_t>(max_packed_grains);
+    for (std::size_t g = 0; g < entries.size(); ++g) {
+      const TableReader& entry = entries[g];
+      const std::string type = entry.choice("type", {"box_deposit", "cubic_grid"});
+      if (const auto shape = entry.optional_choice("shape", {"sphere", "random_polyhedron"});
+          shape && *shape != "sphere") {
+        entry.fail_key("shape", "polyhedral grains are not supported in scene files yet (expected \"sphere\")");
+      }
+      std::vector<PackedGrain> packed;
+      const std::uint64_t seed = derive_seed(scene_.run.seed, g);
+      try {
+        if (type == "box_deposit") {
+          entry.allow_only({"type", "shape", "count", "radius_min", "radius_max", "distribution", "region_min",
+                            "region_max", "cell_size", "material", "velocity"},
+                           "for a generator of type = \"box_deposit\"");
+          BoxDepositOptions options;
+          options.count = static_cast<std::uint64_t>(entry.integer("count", 1, max_count));
+          options.sizes = parse_sizes(entry);
+          options.region_min = entry.vec3("region_min");
+          options.region_max = entry.vec3("region_max");
+          for (int axis = 0; axis < 3; ++axis) {
+            if (!(options.region_max[axis] > options.region_min[axis])) {
+              entry.fail_key("region_max", "expected region_max > region_min on every axis, got " +
+                                               show_vec3(options.region_max) + " vs " + show_vec3(options.region_min));
+            }
+          }
+          options.cell_size = entry.number_or("cell_size", 0.0, non_negative());
+          const double cell = box_deposit_cell_size(options);
+          if (cell < 2.0 * options.sizes.radius_max) {
+            entry.fail_key("cell_size", "expected 0 (automatic) or a cell >= 2 radius_max (" +
+                                            show(2.0 * options.sizes.radius_max) + " m), got " + show(cell));
+          }
+          const std::uint64_t capacity = box_deposit_capacity(options);
+          if (options.count > capacity) {
+            entry.fail_key("count", "the region is too small: it holds at most " + std::to_string(capacity) +
+                                        " grains on a grid of cell " + show(cell) + " m (expected count <= " +
+                                        std::to_string(capacity) + ", got " + std::to_string(options.count) +
+                                        "); enlarge region_min/region_max or reduce radius_max or cell_size");
+          }
+          packed = box_deposit(options, seed);
+        } else {
+          entry.allow_only({"type", "shape", "cells_per_side", "cell_size", "center", "radius_min", "radius_max",
+                            "distribution", "material", "velocity"},
+                           "for a generator of type = \"cubic_grid\"");
+          CubicGridOptions options;
+          options.cells_per_side = static_cast<std::uint64_t>(entry.integer("cells_per_side", 1, 464));
+          options.sizes = parse_sizes(entry);
+          options.cell_size = entry.number_or("cell_size", 0.0, non_negative());
+          if (options.cell_size > 0.0 && options.cell_size < 2.0 * options.sizes.radius_max) {
+            entry.fail_key("cell_size", "expected 0 (automatic: 2 radius_max) or a cell >= 2 radius_max (" +
+                                            show(2.0 * options.sizes.radius_max) + " m), got " +
+                                            show(options.cell_size));
+          }
+          options.center = entry.vec3_or("center", Vec3::Zero());
+          packed = cubic_grid_packing(options, seed);
+        }
+      } catch (const PackingError& error) {
+        // Options are checked above; anything left is still reported against the generator.
+        entry.fail_table(error.what());
+      }
+      const int material = material_of(entry);
+      const Vec3 velocity = entry.vec3_or("velocity", Vec3::Zero());
+      for (std::size_t k = 0; k < packed.size(); ++k) {
+        GrainSpec grain;
+        grain.radius = packed[k].radius;
+        grain.position = packed[k].position;
+        grain.velocity = velocity;
+        grain.material = material;
+        grain.origin.generator = static_cast<int>(g);
+        grain.origin.ordinal = k;
+        grain.origin.node = entry.anchor();
+        add_grain(grain);
+      }
+    }
+  }
+
+  void add_grain(const GrainSpec& grain) {
+    if (grains_.size() >= max_packed_grains) {
+      root_.fail(grain.origin.node, grain_key(grain.origin),
+                 "too many grains: expected at most " + std::to_string(max_packed_grains) + " in a scene");
+    }
+    grains_.push_back(grain);
+  }
+
+  /// Every pair of materials that can touch (grain-grain, grain-wall) needs a law, unless a
+  /// [default_contact_law] covers the missing ones.
+  void check_contact_law_coverage() const {
+    if (default_law_) return;
+    const int n = static_cast<int>(scene_.model.materials.size());
+    std::vector<bool> grain_material(static_cast<std::size_t>(n), false);
+    std::vector<bool> wall_material(static_cast<std::size_t>(n), false);
+    for (const GrainSpec& g : grains_) grain_material[static_cast<std::size_t>(g.material)] = true;
+    for (const WallSpec& w : walls_) wall_material[static_cast<std::size_t>(w.material)] = true;
+    for (int a = 0; a < n; ++a) {
+      if (!grain_material[static_cast<std::size_t>(a)]) continue;
+      for (int b = 0; b < n; ++b) {
+        if (!grain_material[static_cast<std::size_t>(b)] && !wall_material[static_cast<std::size_t>(b)]) continue;
+        if (law_defined_[static_cast<std::size_t>(a * n + b)]) continue;
+        const std::string& name_a = scene_.model.materials[static_cast<std::size_t>(a)].name;
+        const std::string& name_b = scene_.model.materials[static_cast<std::size_t>(b)].name;
+        root_.fail(root_.get("contact_laws"), "contact_laws",
+                   "no contact law for materials \"" + name_a + "\" and \"" + name_b +
+                       "\", which can touch: expected a [[contact_laws]] entry with materials = [\"" + name_a +
+                       "\", \"" + name_b + "\"] (or a [default_contact_law])");
+      }
+    }
+  }
+
+  /// Two plane walls facing away from each other (normals opposite) leave no room between them.
+  /// (With grains present, any other empty intersection of half-spaces is caught by the grain check.)
+  void check_walls_have_an_inside() const {
+    for (std::size_t i = 0; i < walls_.size(); ++i) {
+      if (!walls_[i].is_plane) continue;
+      for (std::size_t j = i + 1; j < walls_.size(); ++j) {
+        if (!walls_[j].is_plane) continue;
+        const Vec3& n = walls_[i].normal;
+        if (n.dot(walls_[j].normal) > -1.0 + 1e-12) continue;
+        // Inside of i: n.(x - p_i) >= 0; inside of j: n.(x - p_j) <= 0 (its normal is -n).
+        const double width = n.dot(walls_[j].position - walls_[i].position);
+        if (width <= 0.0) {
+          root_.fail(walls_[j].node, walls_[j].path,
+                     "this plane and " + walls_[i].path + " face away from each other with no space between them (" +
+                         "distance " + show_short(width) +
+                         " m along the normal): expected their normals to point into a common inside");
+        }
+      }
+    }
+  }
+
+  void check_grains_inside_walls() const {
+    for (const WallSpec& wall : walls_) {
+      const Mat3 to_body = wall.orientation.toRotationMatrix().transpose();
+      for (const GrainSpec& grain : grains_) {
+        const double tolerance = allowed_initial_overlap * grain.radius;
+        if (wall.is_plane) {
+          const double distance = wall.normal.dot(grain.position - wall.position);
+          if (distance < grain.radius - tolerance) {
+            const std::string where = distance < 0.0 ? "has its centre behind" : "crosses";
+            root_.fail(grain.origin.node, grain_key(grain.origin),
+                       grain_label(grain.origin) + " at " + show_vec3(grain.position) + " (radius " +
+                           show_short(grain.radius) + " m) " + where + " plane wall " + wall.path +
+                           " (signed distance " + show_short(distance) +
+                           " m): expected every grain entirely on the side its normal points to");
+          }
+        } else {
+          const Vec3 local = to_body * (grain.position - wall.position);
+          const Vec3 outside = (local.cwiseAbs() - wall.half_extents).cwiseMax(0.0);
+          if (outside.norm() < grain.radius - tolerance) {
+            root_.fail(grain.origin.node, grain_key(grain.origin),
+                       grain_label(grain.origin) + " at " + show_vec3(grain.position) + " (radius " +
+                           show_short(grain.radius) + " m) overlaps box wall " + wall.path +
+                           ": expected grains outside box walls");
+          }
+        }
+      }
+    }
+  }
+
+  /// Grid search (cell = largest diameter) for pairs of grains overlapping by more than the
+  /// allowed fraction of the smaller radius: O(N log N), fine for the largest scenes.
+  void check_grains_do_not_overlap() const {
+    double radius_max = 0.0;
+    for (const GrainSpec& g : grains_) radius_max = std::max(radius_max, g.radius);
+    const double cell = 2.0 * radius_max;
+    struct Entry {
+      std::array<std::int64_t, 3> cell;
+      std::size_t grain;
+    };
+    std::vector<Entry> entries(grains_.size());
+    for (std::size_t i = 0; i < grains_.size(); ++i) {
+      for (int axis = 0; axis < 3; ++axis) {
+        const double c = std::floor(grains_[i].position[axis] / cell);
+        entries[i].cell[static_cast<std::size_t>(axis)] = static_cast<std::int64_t>(std::clamp(c, -1e15, 1e15));
+      }
+      entries[i].grain = i;
+    }
+    const auto less = [](const Entry& a, const Entry& b) {
+      return a.cell != b.cell ? a.cell < b.cell : a.grain < b.grain;
+    };
+    std::sort(entries.begin(), entries.end(), less);
+    for (const Entry& e : entries) {
+      const GrainSpec& a = grains_[e.grain];
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          for (std::int64_t dz = -1; dz <= 1; ++dz) {
+            const Entry key{{e.cell[0] + dx, e.cell[1] + dy, e.cell[2] + dz}, 0};
+            auto it = std::lower_bound(entries.begin(), entries.end(), key, less);
+            for (; it != entries.end() && it->cell == key.cell; ++it) {
+              if (it->grain <= e.grain) continue;
+              const GrainSpec& b = grains_[it->grain];
+              const double overlap = a.radius + b.radius - (a.position - b.position).norm();
+              if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
+                root_.fail(b.origin.node, grain_key(b.origin),
+                           grain_label(b.origin) + " overlaps " + grain_name(a.origin) + " by " + show_short(overlap) +
+                               " m: expected grains not to interpenetrate at the start (at most " +
+                               show(100 * allowed_initial_overlap) + "% of the smaller radius)");
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+
+  /// Grains first (bodies then generators, in file order), then walls.
+  void build() {
+    Model& model = scene_.model;
+    State& state = scene_.state;
+    for (const GrainSpec& g : grains_) add_sphere(model, g.radius, g.material);
+    for (const WallSpec& w : walls_) {
+      if (w.is_plane) {
+        add_plane_wall(model, w.normal, w.material);
+      } else {
+        add_box_wall(model, w.half_extents, w.material);
+      }
+    }
+    state.resize(model.body_count());
+    for (std::size_t i = 0; i < grains_.size(); ++i) {
+      state.position[i] = grains_[i].position;
+      state.orientation[i] = grains_[i].orientation;
+      state.velocity[i] = grains_[i].velocity;
+      state.angular_velocity[i] = grains_[i].angular_velocity;
+    }
+    for (std::size_t k = 0; k < walls_.size(); ++k) {
+      state.position[grains_.size() + k] = walls_[k].position;
+      state.orientation[grains_.size() + k] = walls_[k].orientation;
+    }
+  }
+
+  const std::string& file_;
+  TableReader root_;
+  Scene scene_;
+  std::map<std::string, int> material_ids_;
+  std::optional<ContactLaw> default_law_;
+  std::vector<bool> law_defined_;
+  std::vector<WallSpec> walls_;
+  std::vector<GrainSpec> grains_;
+};
+
+// --- writing ---
+
+std::string toml_string(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buffer[8];
+          std::snprintf(buffer, sizeof buffer, "\\u%04x", static_cast<unsigned>(c));
+          out += buffer;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string toml_quaternion(const Quat& q) {
+  return "[" + format_number(q.w()) + ", " + format_number(q.x()) + ", " + format_number(q.y()) + ", " +
+         format_number(q.z()) + "]";
+}
+
+}  // namespace
+
+Scene parse_scene(std::string_view toml_text, const std::string& source_name) {
+  toml::table root;
+  try {
+    root = toml::parse(toml_text, source_name);
+  } catch (const toml::parse_error& error) {
+    throw SceneError(source_name, static_cast<int>(error.source().begin.line), "",
+                     "TOML syntax error: " + std::string(error.description()));
+  }
+  std::string stem = std::filesystem::path(source_name).stem().string();
+  if (stem.empty()) stem = "scene";
+  return SceneParser(source_name, root).parse(stem);
+}
+
+Scene load_scene_file(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    throw SceneError(name, 0, "", "is a folder, expected a scene file (.toml)");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(name, 0, "", "cannot open the scene file (missing or unreadable)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw SceneError(name, 0, "", "cannot read the scene file");
+  return parse_scene(text.str(), name);
+}
+
+std::string default_scene_toml() {
+  // The number of grains (count, with region_min/region_max and the walls sized to hold them) and
+  // the simulated time (end_time) are the two knobs that set the run time of `rubble run`.
+  return R"(# rubble scene file: the built-in default scene (`rubble run` without a scene file).
+# About a thousand spheres, released on a loose grid, fall under gravity into an open box and
+# settle. Reference: docs/scene-file.md. SI units throughout.
+name = "box-deposit"
+seed = 1
+
+[time]
+dt = 1e-4        # s, time step
+theta = 0.5      # theta-method parameter in [0.5, 1]
+end_time = 1.5   # s of simulated time
+
+[solver]
+tolerance = 1e-4
+max_iterations = 1000
+relaxation = 1.0
+warm_start = true
+penetration_correction = 0.2
+max_correction_velocity = 1.0   # m/s
+
+[detection]
+alert_distance = 0.0   # m, 0 = automatic (5% of the smallest grain radius)
+
+[gravity]
+type = "uniform"
+acceleration = [0.0, 0.0, -9.81]   # m/s^2
+
+[output]
+directory = "box-deposit-output"
+snapshot_interval = 0.01   # s of simulated time between snapshots
+progress_interval = 2.0    # s of wall time between progress lines
+vtk = true
+
+[[materials]]
+name = "glass"
+density = 2500.0   # kg/m^3
+
+[[materials]]
+name = "steel"
+density = 7800.0   # kg/m^3 (walls do not move: only the name matters for them)
+
+[[contact_laws]]
+materials = ["glass", "glass"]
+friction = 0.3
+restitution = 0.0
+
+[[contact_laws]]
+materials = ["glass", "steel"]
+friction = 0.3
+restitution = 0.0
+
+# An open box 1.2 m x 1.2 m: a floor and four sides, normals pointing inwards.
+[[walls]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "steel"
+
+[[walls]]
+type = "plane"
+point = [-0.6, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+material = "steel"
+
+[[walls]]
+type = "plane"
+point = [0.6, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+material = "steel"
+
+[[walls]]
+type = "plane"
+point = [0.0, -0.6, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "steel"
+
+[[walls]]
+type = "plane"
+point = [0.0, 0.6, 0.0]
+normal = [0.0, -1.0, 0.0]
+material = "steel"
+
+# 1000 spheres of radius 4-6 cm, one per cell of a grid of 13.2 cm cells (9 x 9 per layer),
+# filled from the floor up (13 layers, up to about 1.7 m high).
+[[generators]]
+type = "box_deposit"
+count = 1000
+radius_min = 0.04
+radius_max = 0.06
+distribution = "uniform_radius"
+region_min = [-0.6, -0.6, 0.0]
+region_max = [0.6, 0.6, 2.0]
+material = "glass"
+)";
+}
+
+Scene default_scene() { return parse_scene(default_scene_toml(), "<default scene>"); }
+
+std::string scene_to_toml(const Scene& scene) {
+  const Model& model = scene.model;
+  const State& state = scene.state;
+  const RunOptions& run = scene.run;
+  std::ostringstream out;
+  out << "# rubble scene file (written by rubble). Reference: docs/scene-file.md\n";
+  out << "name = " << toml_string(scene.name) << "\n";
+  out << "seed = " << static_cast<std::int64_t>(run.seed & 0x7FFFFFFFFFFFFFFFULL) << "\n\n";
+
+  out << "[time]\n";
+  out << "dt = " << format_number(run.step.integrator.time_step) << "\n";
+  out << "theta = " << format_number(run.step.integrator.theta) << "\n";
+  out << "end_time = " << format_number(run.end_time) << "\n\n";
+
+  const SolverOptions& solver = run.step.solver;
+  out << "[solver]\n";
+  out << "tolerance = " << format_number(solver.tolerance) << "\n";
+  out << "max_iterations = " << solver.max_iterations << "\n";
+  out << "relaxation = " << format_number(solver.relaxation) << "\n";
+  out << "warm_start = " << (solver.warm_start ? "true" : "false") << "\n";
+  out << "penetration_correction = " << format_number(solver.penetration_correction) << "\n";
+  out << "max_correction_velocity = " << format_number(solver.max_correction_velocity) << "\n\n";
+
+  out << "[detection]\n";
+  out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n\n";
+
+  const GravitySettings& gravity = run.step.gravity;
+  out << "[gravity]\n";
+  switch (gravity.kind) {
+    case GravitySettings::Kind::none: out << "type = \"none\"\n\n"; break;
+    case GravitySettings::Kind::uniform:
+      out << "type = \"uniform\"\nacceleration = " << format_vec3(gravity.acceleration) << "\n\n";
+      break;
+    case GravitySettings::Kind::self: {
+      const gravity::GravityOptions& self = gravity.self_gravity;
+      const bool tree = self.method == gravity::Method::tree;
+      out << "type = \"" << (tree ? "tree" : "direct") << "\"\n";
+      out << "G = " << format_number(self.G) << "\n";
+      out << "softening = "
+          << format_number(self.softening.kind == gravity::Softening::Kind::plummer ? self.softening.length : 0.0)
+          << "\n";
+      if (tree) {
+        out << "theta = " << format_number(self.theta) << "\n";
+        out << "order = " << self.order << "\n";
+        out << "leaf_size = " << self.leaf_size << "\n";
+        out << "group_size = " << self.group_size << "\n";
+      }
+      out << "\n";
+      break;
+    }
+  }
+
+  const OutputOptions& output = run.output;
+  out << "[output]\n";
+  out << "directory = " << toml_string(output.directory) << "\n";
+  if (output.snapshot_every_steps > 0) {
+    out << "snapshot_every_steps = " << output.snapshot_every_steps << "\n";
+  } else {
+    out << "snapshot_interval = " << format_number(output.snapshot_interval) << "\n";
+  }
+  out << "progress_interval = " << format_number(output.progress_interval) << "\n";
+  out << "vtk = " << (output.write_vtk ? "true" : "false") << "\n";
+
+  for (const Material& material : model.materials) {
+    out << "\n[[materials]]\nname = " << toml_string(material.name) << "\ndensity = " << format_number(material.density)
+        << "\n";
+  }
+  const auto material_name = [&](int id) { return toml_string(model.materials[static_cast<std::size_t>(id)].name); };
+  const int n = model.contact_laws.material_count;
+  for (int a = 0; a < n; ++a) {
+    for (int b = a; b < n; ++b) {
+      const ContactLaw& law = model.contact_laws.get(a, b);
+      out << "\n[[contact_laws]]\nmaterials = [" << material_name(a) << ", " << material_name(b) << "]\n";
+      out << "friction = " << format_number(law.friction_coefficient) << "\n";
+      out << "restitution = " << format_number(law.normal_restitution) << "\n";
+    }
+  }
+
+  for (std::size_t body = 0; body < model.body_count(); ++body) {
+    const auto index = static_cast<std::size_t>(model.shape_index[body]);
+    switch (model.shape_kind[body]) {
+      case ShapeKind::plane:
+        out << "\n[[walls]]\ntype = \"plane\"\npoint = " << format_vec3(state.position[body])
+            << "\nnormal = " << format_vec3(state.orientation[body] * model.planes[index].normal) << "\n";
+        break;
+      case ShapeKind::box:
+        out << "\n[[walls]]\ntype = \"box\"\ncenter = " << format_vec3(state.position[body])
+            << "\nhalf_extents = " << format_vec3(model.boxes[index].half_extents) << "\n";
+        if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
+          out << "orientation = " << toml_quaternion(state.orientation[body]) << "\n";
+        }
+        break;
+      case ShapeKind::sphere:
+        out << "\n[[bodies]]\nshape = \"sphere\"\nradius = " << format_number(model.spheres[index].radius)
+            << "\nposition = " << format_vec3(state.position[body]);
+        if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
+          out << "\norientation = " << toml_quaternion(state.orientation[body]);
+        }
+        out << "\nvelocity = " << format_vec3(state.velocity[body])
+            << "\nangular_velocity = " << format_vec3(state.angular_velocity[body]) << "\n";
+        break;
+      case ShapeKind::polyhedron:
+        throw std::invalid_argument("scene_to_toml: polyhedral grains cannot be written to scene files yet");
+    }
+    out << "material = " << material_name(model.material[body]) << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace rubble
