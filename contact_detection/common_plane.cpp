@@ -1,0 +1,408 @@
+#include "contact_detection/common_plane.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace rubble {
+namespace {
+
+constexpr double infinity = std::numeric_limits<double>::infinity();
+
+double max_dot(const std::vector<Vec3>& points, const Vec3& n, int* index = nullptr) {
+  double best = -infinity;
+  int arg = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double h = n.dot(points[i]);
+    if (h > best) {
+      best = h;
+      arg = static_cast<int>(i);
+    }
+  }
+  if (index) *index = arg;
+  return best;
+}
+
+double min_dot(const std::vector<Vec3>& points, const Vec3& n, int* index = nullptr) {
+  double best = infinity;
+  int arg = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double h = n.dot(points[i]);
+    if (h < best) {
+      best = h;
+      arg = static_cast<int>(i);
+    }
+  }
+  if (index) *index = arg;
+  return best;
+}
+
+/// Liang-Barsky slab test: does the segment p-q meet the box [lower, upper]?
+bool segment_meets_box(const Vec3& p, const Vec3& q, const Vec3& lower, const Vec3& upper) {
+  double t_min = 0.0;
+  double t_max = 1.0;
+  const Vec3 d = q - p;
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(d[k]) < 1e-300) {
+      if (p[k] < lower[k] || p[k] > upper[k]) return false;
+      continue;
+    }
+    double t1 = (lower[k] - p[k]) / d[k];
+    double t2 = (upper[k] - p[k]) / d[k];
+    if (t1 > t2) std::swap(t1, t2);
+    t_min = std::max(t_min, t1);
+    t_max = std::min(t_max, t2);
+    if (t_min > t_max) return false;
+  }
+  return true;
+}
+
+/// Do the arcs (a1, a2) and (c1, c2) cross on the unit sphere? a2 x a1 and c2 x c1 are passed
+/// precomputed. Two arcs cross iff each great circle separates the other arc's ends and the
+/// crossing is not the antipodal one (Gregorius 2013, "The separating axis test between convex
+/// polyhedra", GDC).
+bool arcs_cross(const Vec3& a1, const Vec3& a2, const Vec3& a2_x_a1, const Vec3& c1, const Vec3& c2,
+                const Vec3& c2_x_c1) {
+  const double c1a = c1.dot(a2_x_a1);
+  const double c2a = c2.dot(a2_x_a1);
+  const double a1c = a1.dot(c2_x_c1);
+  const double a2c = a2.dot(c2_x_c1);
+  return c1a * c2a < 0.0 && a1c * a2c < 0.0 && c1a * a2c > 0.0;
+}
+
+// ----------------------------------------------------------------------------------------------
+// GJK distance between A (points `a`) and B (points `b`), both in A's frame, on the Minkowski
+// difference D = B - A. The simplex keeps the vertex pairs so the closest points can be read back.
+
+struct SimplexVertex {
+  Vec3 w = Vec3::Zero();  // b - a
+  int ia = 0;  // vertex of A
+  int ib = 0;  // vertex of B
+};
+
+struct GjkResult {
+  bool separated = false;   // false: touching or overlapping (within round-off)
+  Vec3 closest = Vec3::Zero();  // the point of D closest to the origin (direction A -> B)
+};
+
+/// Closest point to the origin of the simplex s[0..count), reduced in place to the vertices
+/// that support it (Ericson 2005, "Real-Time Collision Detection", sec. 5.1.2-5.1.6).
+/// Returns false when the origin is inside a full tetrahedron.
+bool reduce_simplex(std::array<SimplexVertex, 4>& s, int& count, Vec3& closest) {
+  auto keep = [&](std::initializer_list<int> indices) {
+    std::array<SimplexVertex, 4> kept;
+    int k = 0;
+    for (int i : indices) kept[static_cast<std::size_t>(k++)] = s[static_cast<std::size_t>(i)];
+    s = kept;
+    count = k;
+  };
+  auto segment = [&](int i, int j, Vec3& out) -> std::pair<double, int> {
+    // Returns (t, which): which = 0 keeps i, 1 keeps j, 2 keeps both.
+    const Vec3& a = s[static_cast<std::size_t>(i)].w;
+    const Vec3 ab = s[static_cast<std::size_t>(j)].w - a;
+    const double t = -a.dot(ab);
+    if (t <= 0.0) {
+      out = a;
+      return {0.0, 0};
+    }
+    const double length2 = ab.squaredNorm();
+    if (t >= length2) {
+      out = a + ab;
+      return {1.0, 1};
+    }
+    out = a + (t / length2) * ab;
+    return {t / length2, 2};
+  };
+  auto triangle = [&](int ia, int ib, int ic, Vec3& out) -> int {
+    // Region code: bit i set when vertex i of (a, b, c) is kept.
+    const Vec3& a = s[static_cast<std::size_t>(ia)].w;
+    const Vec3& b = s[static_cast<std::size_t>(ib)].w;
+    const Vec3& c = s[static_cast<std::size_t>(ic)].w;
+    const Vec3 ab = b - a, ac = c - a, ap = -a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0.0 && d2 <= 0.0) { out = a; return 1; }
+    const Vec3 bp = -b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0.0 && d4 <= d3) { out = b; return 2; }
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) { out = a + d1 / (d1 - d3) * ab; return 3; }
+    const Vec3 cp = -c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0.0 && d5 <= d6) { out = c; return 4; }
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) { out = a + d2 / (d2 - d6) * ac; return 5; }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+      out = b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+      return 6;
+    }
+    const double denominator = 1.0 / (va + vb + vc);
+    out = a + ab * (vb * denominator) + ac * (vc * denominator);
+    return 7;
+  };
+  auto keep_by_code = [&](std::array<int, 3> ids, int code) {
+    std::array<SimplexVertex, 4> kept;
+    int k = 0;
+    for (int bit = 0; bit < 3; ++bit) {
+      if (code & (1 << bit)) kept[static_cast<std::size_t>(k++)] = s[static_cast<std::size_t>(ids[static_cast<std::size_t>(bit)])];
+    }
+    s = kept;
+    count = k;
+  };
+
+  if (count == 1) {
+    closest = s[0].w;
+    return true;
+  }
+  if (count == 2) {
+    const auto [t, which] = segment(0, 1, closest);
+    (void)t;
+    if (which == 0) keep({0});
+    if (which == 1) keep({1});
+    return true;
+  }
+  if (count == 3) {
+    const int code = triangle(0, 1, 2, closest);
+    keep_by_code({0, 1, 2}, code);
+    return true;
+  }
+  // Tetrahedron: the closest point lies on a face the origin is outside of.
+  const std::array<std::array<int, 4>, 4> faces = {{{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {1, 3, 2, 0}}};
+  double best = infinity;
+  int best_face = -1;
+  int best_code = 0;
+  Vec3 best_point = Vec3::Zero();
+  for (int f = 0; f < 4; ++f) {
+    const auto& ids = faces[static_cast<std::size_t>(f)];
+    const Vec3& a = s[static_cast<std::size_t>(ids[0])].w;
+    const Vec3 n = (s[static_cast<std::size_t>(ids[1])].w - a).cross(s[static_cast<std::size_t>(ids[2])].w - a);
+    const double side_origin = -a.dot(n);
+    const double side_opposite = (s[static_cast<std::size_t>(ids[3])].w - a).dot(n);
+    // Outside (or a flat tetrahedron, where every face counts as outside).
+    if (side_origin * side_opposite < 0.0 || side_opposite == 0.0) {
+      Vec3 point;
+      const int code = triangle(ids[0], ids[1], ids[2], point);
+      const double d2 = point.squaredNorm();
+      if (d2 < best) {
+        best = d2;
+        best_face = f;
+        best_code = code;
+        best_point = point;
+      }
+    }
+  }
+  if (best_face < 0) return false;  // origin inside
+  const auto& ids = faces[static_cast<std::size_t>(best_face)];
+  keep_by_code({ids[0], ids[1], ids[2]}, best_code);
+  closest = best_point;
+  return true;
+}
+
+GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, const Vec3& start_direction,
+                       double size) {
+  // Support of D in direction -v: the point of D with least projection on v.
+  auto support = [&](const Vec3& v) {
+    SimplexVertex out;
+    max_dot(a, v, &out.ia);
+    min_dot(b, v, &out.ib);
+    out.w = b[static_cast<std::size_t>(out.ib)] - a[static_cast<std::size_t>(out.ia)];
+    return out;
+  };
+  GjkResult result;
+  std::array<SimplexVertex, 4> simplex;
+  int count = 1;
+  simplex[0] = support(start_direction);
+  Vec3 v = simplex[0].w;
+  const double touching = 1e-12 * size;
+  for (int iteration = 0; iteration < 64; ++iteration) {
+    const double v2 = v.squaredNorm();
+    if (v2 <= touching * touching) return result;
+    const SimplexVertex w = support(v);
+    // Stop when the lower bound v.w/|v| has reached |v| to relative 1e-12 (Gilbert et al. 1988)
+    // or the new support point is already in the simplex (no progress possible).
+    if (v2 - v.dot(w.w) <= 1e-12 * v2) break;
+    bool repeated = false;
+    for (int i = 0; i < count; ++i) {
+      if (simplex[static_cast<std::size_t>(i)].ia == w.ia && simplex[static_cast<std::size_t>(i)].ib == w.ib) repeated = true;
+    }
+    if (repeated) break;
+    simplex[static_cast<std::size_t>(count++)] = w;
+    if (!reduce_simplex(simplex, count, v)) return result;  // origin enclosed: overlapping
+  }
+  result.separated = v.norm() > touching;
+  result.closest = v;
+  return result;
+}
+
+}  // namespace
+
+bool closest_point_on_polyhedron(const ConvexPolyhedron& shape, const Vec3& point, Vec3& closest) {
+  const std::vector<Vec3> single{point};
+  const Vec3 start = point.squaredNorm() > 0.0 ? Vec3(point.normalized()) : Vec3::UnitZ();
+  const GjkResult gjk = gjk_distance(shape.vertices, single, start, shape.bounding_radius);
+  if (!gjk.separated) return false;
+  closest = point - gjk.closest;  // closest = point - (closest point of the polyhedron)
+  return true;
+}
+
+double plane_separation(const PlacedPolyhedron& a, const PlacedPolyhedron& b, const Vec3& normal) {
+  double max_a = -infinity;
+  const Vec3 na = a.rotation.transpose() * normal;
+  for (const Vec3& v : a.shape->vertices) max_a = std::max(max_a, na.dot(v));
+  double min_b = infinity;
+  const Vec3 nb = b.rotation.transpose() * normal;
+  for (const Vec3& v : b.shape->vertices) min_b = std::min(min_b, nb.dot(v));
+  return (min_b + normal.dot(b.position)) - (max_a + normal.dot(a.position));
+}
+
+CommonPlane find_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron& pb, const Vec3* initial_normal,
+                              double cutoff) {
+  const ConvexPolyhedron& A = *pa.shape;
+  const ConvexPolyhedron& B = *pb.shape;
+  // Everything is done in A's body frame: A's data is used as stored, B is moved into it.
+  const Mat3 rotation = pa.rotation.transpose() * pb.rotation;         // B body -> A body
+  const Vec3 translation = pa.rotation.transpose() * (pb.position - pa.position);  // B centroid in A
+  const double size = std::min(A.bounding_radius, B.bounding_radius);
+  CommonPlane result;
+  auto to_world = [&](const Vec3& n) -> Vec3 { return pa.rotation * n; };
+
+  // --- 1. the warm-start normal ---
+  Vec3 n0;
+  if (initial_normal != nullptr && initial_normal->allFinite() && initial_normal->squaredNorm() > 0.0) {
+    n0 = (pa.rotation.transpose() * *initial_normal).normalized();
+  } else if (translation.squaredNorm() > 0.0) {
+    n0 = translation.normalized();
+  } else {
+    n0 = Vec3::UnitZ();
+  }
+  // f(n0) with B's support taken in B's own frame: no need to move B yet.
+  const double f0 = min_dot(B.vertices, rotation.transpose() * n0) + n0.dot(translation) - max_dot(A.vertices, n0);
+  if (f0 >= cutoff) {
+    result.normal = to_world(n0);
+    result.gap = f0;
+    result.complete = false;
+    return result;
+  }
+
+  // --- 2. separating-axis search ---
+  std::vector<Vec3> vb(B.vertices.size());
+  for (std::size_t i = 0; i < vb.size(); ++i) vb[i] = rotation * B.vertices[i] + translation;
+  std::vector<Vec3> nb(B.face_normals.size());
+  for (std::size_t f = 0; f < nb.size(); ++f) nb[f] = rotation * B.face_normals[f];
+  auto separation = [&](const Vec3& n) { return min_dot(vb, n) - max_dot(A.vertices, n); };
+
+  double best = f0;
+  Vec3 best_normal = n0;
+  CommonPlaneSource best_source = CommonPlaneSource::warm_start;
+
+  // --- 2. apart? GJK gives the exact distance and closest-points direction ---
+  const GjkResult gjk = gjk_distance(A.vertices, vb, n0, size);
+  if (gjk.separated) {
+    const Vec3 n = gjk.closest.normalized();
+    const double value = separation(n);
+    if (value >= best) {
+      best = value;
+      best_normal = n;
+      best_source = CommonPlaneSource::closest_points;
+    }
+  } else {
+    // --- 3. overlapping (or touching): separating-axis search for the least penetration ---
+    // Every candidate value is <= 0 here, so a candidate s that beats `best` has |s| < -best.
+    best = std::min(best, 0.0);
+
+    // Faces of A: f(n_f) = min_B n_f.y - d_f <= n_f.c_B - d_f since B's centroid is inside B.
+    for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
+      const Vec3& n = A.face_normals[f];
+      if (n.dot(translation) - A.face_offsets[f] <= best) continue;
+      const double value = min_dot(vb, n) - A.face_offsets[f];
+      if (value > best) {
+        best = value;
+        best_normal = n;
+        best_source = CommonPlaneSource::face_a;
+      }
+    }
+    // Faces of B, normal -m: f = min_A m.x - (d_f + m.c_B) <= -(d_f + m.c_B) (A's centroid is 0).
+    for (std::size_t f = 0; f < nb.size(); ++f) {
+      const Vec3& m = nb[f];
+      const double offset = B.face_offsets[f] + m.dot(translation);
+      if (-offset <= best) continue;
+      const double value = min_dot(A.vertices, m) - offset;
+      if (value > best) {
+        best = value;
+        best_normal = -m;
+        best_source = CommonPlaneSource::face_b;
+      }
+    }
+    // Edge pairs. A pair whose value s beats `best` has crossing points x_A and x_B = x_A + s n
+    // with |s| < -best, so edge A passes within -best of B and edge B within -best of A: edges
+    // that miss the other body's bounding box inflated by -best are skipped.
+    const double reach = -best + 1e-12 * size;
+    const Vec3 lower_b = B.box_min - Vec3::Constant(reach), upper_b = B.box_max + Vec3::Constant(reach);
+    const Vec3 lower_a = A.box_min - Vec3::Constant(reach), upper_a = A.box_max + Vec3::Constant(reach);
+    std::vector<int> edges_a, edges_b;
+    for (std::size_t e = 0; e < A.edges.size(); ++e) {
+      const auto [i, j] = A.edges[e];
+      const Vec3 p = rotation.transpose() * (A.vertices[static_cast<std::size_t>(i)] - translation);
+      const Vec3 q = rotation.transpose() * (A.vertices[static_cast<std::size_t>(j)] - translation);
+      if (segment_meets_box(p, q, lower_b, upper_b)) edges_a.push_back(static_cast<int>(e));
+    }
+    for (std::size_t e = 0; e < B.edges.size(); ++e) {
+      const auto [i, j] = B.edges[e];
+      if (segment_meets_box(vb[static_cast<std::size_t>(i)], vb[static_cast<std::size_t>(j)], lower_a, upper_a)) {
+        edges_b.push_back(static_cast<int>(e));
+      }
+    }
+    // The arcs of B's edges on the Gauss map of -B (the Minkowski difference is A + (-B)).
+    std::vector<std::array<Vec3, 3>> arcs_b(edges_b.size());
+    for (std::size_t k = 0; k < edges_b.size(); ++k) {
+      const auto [left, right] = B.edge_faces[static_cast<std::size_t>(edges_b[k])];
+      const Vec3 c1 = -nb[static_cast<std::size_t>(left)];
+      const Vec3 c2 = -nb[static_cast<std::size_t>(right)];
+      arcs_b[k] = {c1, c2, c2.cross(c1)};
+    }
+    for (int ea : edges_a) {
+      const auto [ia, ja] = A.edges[static_cast<std::size_t>(ea)];
+      const auto [left_a, right_a] = A.edge_faces[static_cast<std::size_t>(ea)];
+      const Vec3& a1 = A.face_normals[static_cast<std::size_t>(left_a)];
+      const Vec3& a2 = A.face_normals[static_cast<std::size_t>(right_a)];
+      const Vec3 a2_x_a1 = a2.cross(a1);
+      const Vec3& pa0 = A.vertices[static_cast<std::size_t>(ia)];
+      const Vec3 edge_a = A.vertices[static_cast<std::size_t>(ja)] - pa0;
+      for (std::size_t k = 0; k < edges_b.size(); ++k) {
+        const auto& arc = arcs_b[k];
+        if (!arcs_cross(a1, a2, a2_x_a1, arc[0], arc[1], arc[2])) continue;
+        const auto [ib, jb] = B.edges[static_cast<std::size_t>(edges_b[k])];
+        const Vec3& pb0 = vb[static_cast<std::size_t>(ib)];
+        const Vec3 edge_b = vb[static_cast<std::size_t>(jb)] - pb0;
+        Vec3 n = edge_a.cross(edge_b);
+        const double length2 = n.squaredNorm();
+        if (length2 <= 1e-20 * edge_a.squaredNorm() * edge_b.squaredNorm()) continue;  // parallel: a face case
+        n /= std::sqrt(length2);
+        if (n.dot(a1 + a2) < 0.0) n = -n;  // outward from A at edge A
+        // Exact for a polytope (the edges are the supports); confirmed with the full supports so
+        // slightly non-planar merged faces can never report more separation than there is.
+        if (n.dot(pb0 - pa0) <= best) continue;
+        const double value = separation(n);
+        if (value > best) {
+          best = value;
+          best_normal = n;
+          best_source = CommonPlaneSource::edge_edge;
+        }
+      }
+    }
+  }
+  // Temporal coherence: keep last step's plane when it is as good as the optimum.
+  if (initial_normal != nullptr && best_source != CommonPlaneSource::warm_start && f0 >= best - 1e-9 * size) {
+    best = f0;
+    best_normal = n0;
+    best_source = CommonPlaneSource::warm_start;
+  }
+  result.normal = to_world(best_normal);
+  result.gap = best;
+  result.source = best_source;
+  return result;
+}
+
+}  // namespace rubble

@@ -1,0 +1,278 @@
+#include "core/polyhedron.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+namespace rubble {
+namespace {
+
+[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("convex polyhedron: " + what); }
+
+void check_indices(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces) {
+  const int n = static_cast<int>(vertices.size());
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    if (faces[f].size() < 3) fail("face " + std::to_string(f) + " has fewer than 3 vertices");
+    for (int v : faces[f]) {
+      if (v < 0 || v >= n) {
+        fail("face " + std::to_string(f) + " uses vertex " + std::to_string(v) + ", expected 0.." +
+             std::to_string(n - 1));
+      }
+    }
+  }
+}
+
+/// Newell's normal of a polygon (robust for slightly non-planar polygons), not normalised:
+/// its length is twice the projected area.
+Vec3 newell_normal(const std::vector<Vec3>& vertices, const std::vector<int>& face) {
+  Vec3 n = Vec3::Zero();
+  for (std::size_t i = 0; i < face.size(); ++i) {
+    const Vec3& p = vertices[static_cast<std::size_t>(face[i])];
+    const Vec3& q = vertices[static_cast<std::size_t>(face[(i + 1) % face.size()])];
+    n += p.cross(q);
+  }
+  return n;
+}
+
+/// Rotation whose columns are the principal axes of `inertia` (right-handed), or the identity
+/// when the tensor is already diagonal (so aligned inputs keep their axes).
+Mat3 principal_axes(const Mat3& inertia) {
+  const double scale = inertia.diagonal().cwiseAbs().maxCoeff();
+  const double off = std::max({std::abs(inertia(0, 1)), std::abs(inertia(0, 2)), std::abs(inertia(1, 2))});
+  if (off <= 1e-12 * scale) return Mat3::Identity();
+  Eigen::SelfAdjointEigenSolver<Mat3> solver(inertia);
+  Mat3 axes = solver.eigenvectors();
+  if (axes.determinant() < 0.0) axes.col(2) = -axes.col(2);
+  return axes;
+}
+
+}  // namespace
+
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
+                                                    const std::vector<std::vector<int>>& faces) {
+  check_indices(vertices, faces);
+  PolyhedronMassProperties out;
+  if (vertices.empty()) return out;
+  // Reference point: the vertex mean, so the tetrahedra are small and round-off stays relative
+  // to the polyhedron's size, not to its distance from the origin.
+  Vec3 reference = Vec3::Zero();
+  for (const Vec3& v : vertices) reference += v;
+  reference /= static_cast<double>(vertices.size());
+
+  double volume = 0.0;
+  Vec3 first = Vec3::Zero();
+  Mat3 second = Mat3::Zero();
+  for (const auto& face : faces) {
+    const Vec3 p1 = vertices[static_cast<std::size_t>(face[0])] - reference;
+    for (std::size_t k = 1; k + 1 < face.size(); ++k) {
+      const Vec3 p2 = vertices[static_cast<std::size_t>(face[k])] - reference;
+      const Vec3 p3 = vertices[static_cast<std::size_t>(face[k + 1])] - reference;
+      const double v = p1.dot(p2.cross(p3)) / 6.0;  // signed volume of (reference, p1, p2, p3)
+      const Vec3 s = p1 + p2 + p3;                 // p0 = 0
+      volume += v;
+      first += v * s / 4.0;
+      second += v / 20.0 * (p1 * p1.transpose() + p2 * p2.transpose() + p3 * p3.transpose() + s * s.transpose());
+    }
+  }
+  out.volume = volume;
+  if (volume == 0.0) return out;
+  const Vec3 centroid = first / volume;
+  const Mat3 central = second - volume * centroid * centroid.transpose();  // parallel axis theorem
+  out.centroid = reference + centroid;
+  out.inertia_per_density = central.trace() * Mat3::Identity() - central;
+  return out;
+}
+
+ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
+                                        const PolyhedronBuildOptions& options, PolyhedronPose* pose) {
+  if (vertices.size() < 4) fail("needs at least 4 vertices, got " + std::to_string(vertices.size()));
+  if (faces.size() < 4) fail("needs at least 4 faces, got " + std::to_string(faces.size()));
+  check_indices(vertices, faces);
+  for (const Vec3& v : vertices) {
+    if (!v.allFinite()) fail("a vertex coordinate is not finite");
+  }
+
+  // --- topology: every directed edge once, its reverse once (closed, oriented 2-manifold) ---
+  struct DirectedEdge {
+    int from, to, face;
+  };
+  std::vector<DirectedEdge> directed;
+  std::vector<char> used(vertices.size(), 0);
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const auto& face = faces[f];
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      const int from = face[i];
+      const int to = face[(i + 1) % face.size()];
+      if (from == to) fail("face " + std::to_string(f) + " repeats vertex " + std::to_string(from));
+      directed.push_back({from, to, static_cast<int>(f)});
+      used[static_cast<std::size_t>(from)] = 1;
+    }
+  }
+  for (std::size_t v = 0; v < vertices.size(); ++v) {
+    if (!used[v]) fail("vertex " + std::to_string(v) + " is on no face");
+  }
+  std::sort(directed.begin(), directed.end(),
+            [](const DirectedEdge& x, const DirectedEdge& y) { return std::tie(x.from, x.to) < std::tie(y.from, y.to); });
+  for (std::size_t i = 1; i < directed.size(); ++i) {
+    if (directed[i].from == directed[i - 1].from && directed[i].to == directed[i - 1].to) {
+      fail("edge " + std::to_string(directed[i].from) + "-" + std::to_string(directed[i].to) +
+           " is used twice in the same direction (faces " + std::to_string(directed[i - 1].face) + " and " +
+           std::to_string(directed[i].face) + "): inconsistent orientation or non-manifold");
+    }
+  }
+  auto find_directed = [&](int from, int to) -> const DirectedEdge* {
+    auto it = std::lower_bound(directed.begin(), directed.end(), std::make_pair(from, to),
+                               [](const DirectedEdge& e, const std::pair<int, int>& key) {
+                                 return std::tie(e.from, e.to) < std::tie(key.first, key.second);
+                               });
+    return (it != directed.end() && it->from == from && it->to == to) ? &*it : nullptr;
+  };
+  std::vector<std::pair<int, int>> edges;
+  std::vector<std::pair<int, int>> edge_faces;
+  for (const DirectedEdge& e : directed) {
+    const DirectedEdge* reverse = find_directed(e.to, e.from);
+    if (reverse == nullptr) {
+      fail("edge " + std::to_string(e.from) + "-" + std::to_string(e.to) + " of face " + std::to_string(e.face) +
+           " has no neighbouring face: the surface is not closed");
+    }
+    if (e.from < e.to) {
+      edges.emplace_back(e.from, e.to);
+      edge_faces.emplace_back(e.face, reverse->face);
+    }
+  }
+  const long euler = static_cast<long>(vertices.size()) - static_cast<long>(edges.size()) +
+                     static_cast<long>(faces.size());
+  if (euler != 2) fail("Euler characteristic V - E + F = " + std::to_string(euler) + ", expected 2 (a sphere)");
+
+  // --- mass properties, body frame ---
+  const PolyhedronMassProperties mass = polyhedron_mass_properties(vertices, faces);
+  double extent = 0.0;
+  for (const Vec3& v : vertices) extent = std::max(extent, (v - mass.centroid).norm());
+  if (!(mass.volume > 1e-12 * std::pow(2.0 * extent, 3))) {
+    if (mass.volume < 0.0) fail("negative volume: faces are ordered clockwise seen from outside");
+    fail("degenerate (flat or empty) polyhedron: volume " + std::to_string(mass.volume));
+  }
+  const Mat3 axes = principal_axes(mass.inertia_per_density);
+  for (Vec3& v : vertices) v = axes.transpose() * (v - mass.centroid);
+  const Mat3 principal = axes.transpose() * mass.inertia_per_density * axes;
+  if (pose != nullptr) {
+    pose->centroid = mass.centroid;
+    pose->orientation = Quat(axes).normalized();
+  }
+
+  ConvexPolyhedron shape;
+  shape.vertices = std::move(vertices);
+  shape.faces = std::move(faces);
+  shape.edges = std::move(edges);
+  shape.edge_faces = std::move(edge_faces);
+  shape.volume = mass.volume;
+  shape.principal_inertia_per_density = principal.diagonal();
+  shape.bounding_radius = 0.0;
+  shape.box_min = Vec3::Constant(std::numeric_limits<double>::infinity());
+  shape.box_max = -shape.box_min;
+  for (const Vec3& v : shape.vertices) {
+    shape.bounding_radius = std::max(shape.bounding_radius, v.norm());
+    shape.box_min = shape.box_min.cwiseMin(v);
+    shape.box_max = shape.box_max.cwiseMax(v);
+  }
+  const double tolerance = options.convexity_tolerance * 2.0 * shape.bounding_radius;
+
+  // --- faces: normals, convexity, supporting planes ---
+  for (std::size_t f = 0; f < shape.faces.size(); ++f) {
+    const auto& face = shape.faces[f];
+    const Vec3 area_normal = newell_normal(shape.vertices, face);
+    if (!(area_normal.norm() > 1e-14 * shape.bounding_radius * shape.bounding_radius)) {
+      fail("face " + std::to_string(f) + " has zero area");
+    }
+    const Vec3 n = area_normal.normalized();
+    double own = 0.0;
+    for (int v : face) own += n.dot(shape.vertices[static_cast<std::size_t>(v)]);
+    own /= static_cast<double>(face.size());
+    double offset = -std::numeric_limits<double>::infinity();
+    for (std::size_t v = 0; v < shape.vertices.size(); ++v) {
+      const double h = n.dot(shape.vertices[v]);
+      if (h > own + tolerance) {
+        fail("not convex: vertex " + std::to_string(v) + " lies " + std::to_string(h - own) +
+             " m outside the plane of face " + std::to_string(f));
+      }
+      offset = std::max(offset, h);
+    }
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      const Vec3& p = shape.vertices[static_cast<std::size_t>(face[i])];
+      const Vec3& q = shape.vertices[static_cast<std::size_t>(face[(i + 1) % face.size()])];
+      const Vec3& r = shape.vertices[static_cast<std::size_t>(face[(i + 2) % face.size()])];
+      if (n.dot(p) < own - tolerance) {
+        fail("face " + std::to_string(f) + " is not planar: vertex " + std::to_string(face[i]) + " is " +
+             std::to_string(own - n.dot(p)) + " m below its plane");
+      }
+      // A convex face turns left at every corner (seen from outside).
+      if (n.dot((q - p).cross(r - q)) < -tolerance * (q - p).norm()) {
+        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " + std::to_string(face[(i + 1) % face.size()]));
+      }
+    }
+    shape.face_normals.push_back(n);
+    shape.face_offsets.push_back(offset);
+  }
+
+  shape.vertex_neighbours.assign(shape.vertices.size(), {});
+  for (const auto& [i, j] : shape.edges) {
+    shape.vertex_neighbours[static_cast<std::size_t>(i)].push_back(j);
+    shape.vertex_neighbours[static_cast<std::size_t>(j)].push_back(i);
+  }
+  return shape;
+}
+
+ConvexPolyhedron scaled_polyhedron(const ConvexPolyhedron& shape, double factor) {
+  if (!(factor > 0.0) || !std::isfinite(factor)) fail("scale factor must be positive, got " + std::to_string(factor));
+  ConvexPolyhedron out = shape;
+  for (Vec3& v : out.vertices) v *= factor;
+  for (double& d : out.face_offsets) d *= factor;
+  out.box_min *= factor;
+  out.box_max *= factor;
+  out.bounding_radius *= factor;
+  out.volume *= factor * factor * factor;
+  out.principal_inertia_per_density *= std::pow(factor, 5);
+  return out;
+}
+
+ConvexPolyhedron make_box_polyhedron(const Vec3& half_extents) {
+  const Vec3& h = half_extents;
+  std::vector<Vec3> v;
+  for (int k = 0; k < 8; ++k) {
+    v.emplace_back((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z());
+  }
+  // CCW seen from outside.
+  std::vector<std::vector<int>> f = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  return make_convex_polyhedron(std::move(v), std::move(f));
+}
+
+int support_vertex(const ConvexPolyhedron& shape, const Vec3& direction) {
+  int best = 0;
+  double best_value = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < shape.vertices.size(); ++i) {
+    const double h = direction.dot(shape.vertices[i]);
+    if (h > best_value) {
+      best_value = h;
+      best = static_cast<int>(i);
+    }
+  }
+  return best;
+}
+
+double support_value(const ConvexPolyhedron& shape, const Vec3& direction) {
+  double best = -std::numeric_limits<double>::infinity();
+  for (const Vec3& v : shape.vertices) best = std::max(best, direction.dot(v));
+  return best;
+}
+
+int add_polyhedron_grain(Model& model, ConvexPolyhedron shape, int material) {
+  const double volume = shape.volume;
+  const Vec3 inertia = shape.principal_inertia_per_density;
+  return add_polyhedron(model, std::move(shape), volume, inertia, material);
+}
+
+}  // namespace rubble
