@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "contact_detection/narrow_phase_spheres.hpp"
+#include "core/parallel.hpp"
 #if RUBBLE_HAS_POLYHEDRA
 #include "contact_detection/narrow_phase_polyhedra.hpp"
 #endif
@@ -122,7 +123,7 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
     }
     run_start.push_back(entries.size());
     const std::ptrdiff_t run_count = static_cast<std::ptrdiff_t>(run_start.size()) - 1;
-#pragma omp parallel
+#pragma omp parallel if (run_count >= min_parallel_items)
     {
       std::vector<BodyPair> local;
 #pragma omp for schedule(dynamic, 64) nowait
@@ -201,7 +202,7 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
   const std::ptrdiff_t pair_count = static_cast<std::ptrdiff_t>(pairs.size());
   std::vector<ContactList> per_pair(pairs.size());
   std::vector<Vec3> normals(pairs.size(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
-#pragma omp parallel for schedule(dynamic, 32)
+#pragma omp parallel for schedule(dynamic, 32) if (pair_count >= min_parallel_items / 4)
   for (std::ptrdiff_t p = 0; p < pair_count; ++p) {
     const auto k = static_cast<std::size_t>(p);
     collide_pair(model, state, pairs[k], alert, memory, per_pair[k], normals[k]);

@@ -1,5 +1,7 @@
 #include "core/integrator.hpp"
 
+#include "core/parallel.hpp"
+
 namespace rubble {
 
 void compute_free_velocity(const Model& model, const State& state, std::span<const Vec3> force,
@@ -7,7 +9,7 @@ void compute_free_velocity(const Model& model, const State& state, std::span<con
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
   free_velocity.linear.resize(static_cast<std::size_t>(n));
   free_velocity.angular.resize(static_cast<std::size_t>(n));
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
     if (model.is_fixed(b)) {
@@ -33,7 +35,7 @@ void update_positions(const Model& model, const IntegratorOptions& options, cons
   const double h = options.time_step;
   const double theta = options.theta;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
     if (model.is_fixed(b)) continue;

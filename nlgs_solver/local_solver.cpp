@@ -1,7 +1,9 @@
 #include "nlgs_solver/local_solver.hpp"
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace rubble {
@@ -60,27 +62,42 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
                                   : Vec2(u_free.y(), u_free.z()).normalized();
   if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
   SlidingCandidate c;
-  for (int iteration = 0; iteration < 50; ++iteration) {
-    if (!sliding_candidate(W, u_free, mu, d, c)) break;
-    const double speed = c.tangential_velocity.norm();
-    if (speed == 0.0) break;
-    const Vec2 next = c.tangential_velocity / speed;
-    if ((next - d).norm() < 1e-13) {
+  // Newton on the angle phi of d for the misalignment f(phi) = u_T x d = 0, from the sticking
+  // trial's direction. A plain fixed point d <- u_T/||u_T|| diverges near the cone's boundary,
+  // where the slip is small; Newton on phi does not, since f' stays of the order of mu r_n W_TT.
+  double phi = std::atan2(d.y(), d.x());
+  auto f = [&](double angle, SlidingCandidate& out) {
+    const Vec2 dir(std::cos(angle), std::sin(angle));
+    if (!sliding_candidate(W, u_free, mu, dir, out)) return std::numeric_limits<double>::quiet_NaN();
+    return misalignment(out, dir);
+  };
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const double value = f(phi, c);
+    if (std::isnan(value)) break;
+    const Vec2 dir(std::cos(phi), std::sin(phi));
+    const double slip = c.tangential_velocity.dot(dir);
+    if (std::abs(value) <= 1e-14 * (u_free.norm() + c.tangential_velocity.norm()) && slip >= 0.0) {
       solution.impulse = c.impulse;
       solution.regime = LocalSolution::Regime::sliding;
       return solution;
     }
-    d = next;
+    constexpr double step = 1e-7;
+    SlidingCandidate scratch;
+    const double derivative = (f(phi + step, scratch) - f(phi - step, scratch)) / (2.0 * step);
+    if (!std::isfinite(derivative) || derivative == 0.0) break;
+    phi -= std::clamp(value / derivative, -0.5, 0.5);
   }
 
-  // Fallback: scan the angle of d for a sign change of the misalignment with u_T . d > 0,
-  // then bisect (robust for any positive definite block).
-  constexpr int samples = 72;
+  // Fallback: scan the angle of d for sign changes of the misalignment where u_T . d > 0, bisect
+  // each bracket and keep the first root that is a true sliding solution (robust for any
+  // positive definite block, including strongly coupled ones).
+  constexpr int samples = 360;
   double best_angle = 0.0;
   bool found = false;
   double previous_angle = 0.0;
   double previous_value = 0.0;
   bool previous_valid = false;
+  const double velocity_scale = u_free.norm();
   for (int k = 0; k <= samples && !found; ++k) {
     const double angle = 2.0 * std::numbers::pi * k / samples;
     const Vec2 dk(std::cos(angle), std::sin(angle));
@@ -103,8 +120,11 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
           hi = mid;
         }
       }
-      best_angle = 0.5 * (lo + hi);
-      found = true;
+      const double root = 0.5 * (lo + hi);
+      const Vec2 dr(std::cos(root), std::sin(root));
+      found = sliding_candidate(W, u_free, mu, dr, c) && c.tangential_velocity.dot(dr) >= 0.0 &&
+              std::abs(misalignment(c, dr)) <= 1e-12 * (velocity_scale + c.tangential_velocity.norm());
+      best_angle = root;
     }
     previous_angle = angle;
     previous_value = value;

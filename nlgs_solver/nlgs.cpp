@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "core/parallel.hpp"
 #include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/sweep.hpp"
 
@@ -72,7 +73,7 @@ double normal_velocity_target(const Contact& c, double free_normal_velocity, con
 std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state) {
   std::vector<Mat3> result(model.body_count());
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
     result[b] = world_inverse_inertia(model, b, state.orientation[b]);
@@ -92,7 +93,7 @@ void prepare_contacts(const Model& model, const State& state, const BodyVelociti
                       const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts) {
   const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(contacts.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     Contact& c = contacts[static_cast<std::size_t>(i)];
     const std::size_t a = c.id.body_a, b = c.id.body_b;

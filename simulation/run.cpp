@@ -81,7 +81,7 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     row.iterations = report.solver.iterations;
     row.residual = report.solver.residual;
     row.wall_seconds = step_seconds;
-    row.stage_seconds.assign(report.stage_seconds.begin(), report.stage_seconds.end());
+    row.stage_seconds = report.stage_seconds;
     file.append_series(row);
 
     iteration_sum += report.solver.iterations;

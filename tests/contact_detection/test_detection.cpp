@@ -1,0 +1,98 @@
+// Broad phase against brute force, determinism, and the warm-start matching.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "contact_detection/detection.hpp"
+
+namespace rubble {
+namespace {
+
+struct Cloud {
+  Model model;
+  State state;
+};
+
+// n spheres with radii uniform in [r_min, r_max] scattered in a cube of side `side`.
+Cloud random_cloud(int n, double r_min, double r_max, double side, std::uint64_t seed) {
+  Cloud c;
+  c.model.materials.push_back({"rock", 2000});
+  c.model.contact_laws.reset(1, {});
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> radius(r_min, r_max), coordinate(0.0, side);
+  for (int k = 0; k < n; ++k) add_sphere(c.model, radius(rng), 0);
+  c.state.resize(c.model.body_count());
+  for (auto& p : c.state.position) p = Vec3(coordinate(rng), coordinate(rng), coordinate(rng));
+  return c;
+}
+
+std::vector<BodyPair> brute_force_pairs(const Cloud& c, double alert) {
+  std::vector<BodyPair> pairs;
+  for (std::uint32_t a = 0; a < c.model.body_count(); ++a)
+    for (std::uint32_t b = a + 1; b < c.model.body_count(); ++b) {
+      const double reach = c.model.bounding_radius[a] + c.model.bounding_radius[b] + alert;
+      if ((c.state.position[a] - c.state.position[b]).norm() < reach) pairs.push_back({a, b});
+    }
+  return pairs;
+}
+
+// Every pair within reach must be a candidate (the broad phase may add box-corner pairs).
+void expect_superset(const std::vector<BodyPair>& candidates, const std::vector<BodyPair>& needed) {
+  for (const BodyPair& p : needed) {
+    EXPECT_TRUE(std::binary_search(candidates.begin(), candidates.end(), p)) << p.body_a << "-" << p.body_b;
+  }
+  EXPECT_TRUE(std::is_sorted(candidates.begin(), candidates.end()));
+  EXPECT_EQ(std::adjacent_find(candidates.begin(), candidates.end()), candidates.end()) << "duplicate pair";
+}
+
+TEST(BroadPhase, FindsEveryPairOfAPolydisperseCloud) {
+  const Cloud c = random_cloud(3000, 3.75, 5.0, 150.0, 1);  // the study's 7.5-10 m diameters
+  expect_superset(find_candidate_pairs(c.model, c.state, 0.2), brute_force_pairs(c, 0.2));
+}
+
+TEST(BroadPhase, FindsEveryPairWithATenToOneSizeRatio) {
+  const Cloud c = random_cloud(3000, 0.1, 1.0, 20.0, 2);
+  const auto needed = brute_force_pairs(c, 0.01);
+  const auto candidates = find_candidate_pairs(c.model, c.state, 0.01);
+  expect_superset(candidates, needed);
+  // Candidates are pairs of overlapping boxes: at most (6/pi) times the pairs of overlapping spheres.
+  EXPECT_LT(candidates.size(), 3 * needed.size() + 10);
+}
+
+TEST(Detection, ContactsAreSortedAndTheirGapsAreTheSpheresDistance) {
+  Cloud c = random_cloud(500, 0.5, 1.0, 12.0, 3);
+  DetectionMemory memory;
+  const ContactList contacts = detect_contacts(c.model, c.state, DetectionOptions{0.05}, memory);
+  ASSERT_FALSE(contacts.empty());
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    const Contact& x = contacts[k];
+    if (k > 0) {
+      EXPECT_LT(contacts[k - 1].id, x.id);
+    }
+    const double distance = (c.state.position[x.id.body_b] - c.state.position[x.id.body_a]).norm();
+    EXPECT_NEAR(x.gap, distance - c.model.bounding_radius[x.id.body_a] - c.model.bounding_radius[x.id.body_b], 1e-12);
+    EXPECT_LT(x.gap, 0.05);
+    EXPECT_NEAR((x.frame.transpose() * x.frame - Mat3::Identity()).norm(), 0.0, 1e-12);
+    EXPECT_NEAR(x.frame.determinant(), 1.0, 1e-12);
+  }
+  EXPECT_EQ(contacts.size(), brute_force_pairs(c, 0.05).size());
+}
+
+TEST(MatchContacts, CarriesTheWorldImpulseIntoTheNewFrame) {
+  Contact old_contact;
+  old_contact.id = {1, 2, 0, 0};
+  old_contact.frame = frame_from_normal(Vec3(0, 0, 1));
+  old_contact.impulse = Vec3(2.0, 0.5, -0.25);
+  Contact new_contact = old_contact;
+  new_contact.frame = frame_from_normal(Vec3(0.1, 0, 1).normalized());
+  new_contact.impulse = Vec3::Zero();
+  Contact unmatched;
+  unmatched.id = {1, 3, 0, 0};
+  ContactList current{new_contact, unmatched};
+  carry_impulses({old_contact}, current);
+  EXPECT_LT((current[0].frame * current[0].impulse - old_contact.frame * old_contact.impulse).norm(), 1e-14);
+  EXPECT_EQ(current[1].impulse, Vec3::Zero());
+}
+
+}  // namespace
+}  // namespace rubble
