@@ -2,7 +2,7 @@
 //
 //   bench_gravity [--n 1000,10000,100000,1000000] [--theta 0.3,0.5,0.7,1.0] [--order 1,2]
 //                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
-//                 [--csv FILE] [--direct-rate]
+//                 [--csv FILE] [--direct-rate] [--leaf-size 16] [--group-size 64]
 //
 // Each tree figure is the best of --reps evaluations (tree build included). Errors are the
 // per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
@@ -80,7 +80,7 @@ double percentile(std::vector<double> v, double p) {
 int main(int argc, char** argv) {
   std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2},
       threads{1, 2};
-  int reps = 3;
+  int reps = 3, leaf_size = g::GravityOptions{}.leaf_size, group_size = g::GravityOptions{}.group_size;
   std::size_t subset = 1000;
   std::string dist = "uniform", csv_path;
   bool direct_rate = false;
@@ -98,6 +98,8 @@ int main(int argc, char** argv) {
     else if (arg == "--order") orders = parse_list(next());
     else if (arg == "--threads") threads = parse_list(next());
     else if (arg == "--reps") reps = std::stoi(next());
+    else if (arg == "--leaf-size") leaf_size = std::stoi(next());
+    else if (arg == "--group-size") group_size = std::stoi(next());
     else if (arg == "--subset") subset = std::stoul(next());
     else if (arg == "--dist") dist = next();
     else if (arg == "--csv") csv_path = next();
@@ -168,6 +170,8 @@ int main(int argc, char** argv) {
         o.G = 1.0;
         o.theta = theta;
         o.order = static_cast<int>(order);
+        o.leaf_size = leaf_size;
+        o.group_size = group_size;
         std::vector<double> acc(3 * n), pot(n);
         for (double t : threads) {
           omp_set_num_threads(static_cast<int>(t));
@@ -190,7 +194,7 @@ int main(int argc, char** argv) {
           }
           const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
                        mx = *std::max_element(err.begin(), err.end());
-          std::printf("| %s | %zu | %.1f | %d | %d | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
+          std::printf("| %s | %zu | %.2g | %d | %d | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
                       dist.c_str(), n, theta, o.order, static_cast<int>(t), best, bb, bw, med, p99,
                       mx);
           std::fflush(stdout);
