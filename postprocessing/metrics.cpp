@@ -1,6 +1,47 @@
 #include "postprocessing/metrics.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+
+#include "gravity/gravity.hpp"
+
 namespace rubble {
+namespace {
+
+/// Volume of the intersection of a ball of radius r at distance d from the centre of a ball of
+/// radius big_r (the lens of two spheres; e.g. Weisstein, "Sphere-Sphere Intersection"):
+/// V = pi (R + r - d)^2 (d^2 + 2 d r - 3 r^2 + 2 d R + 6 r R - 3 R^2) / (12 d).
+double ball_intersection_volume(double big_r, double r, double d) {
+  if (d >= big_r + r) return 0.0;
+  if (d <= std::abs(big_r - r)) {
+    const double small = std::min(big_r, r);
+    return 4.0 / 3.0 * std::numbers::pi * small * small * small;
+  }
+  const double a = big_r + r - d;
+  return std::numbers::pi * a * a * (d * d + 2.0 * d * r - 3.0 * r * r + 2.0 * d * big_r + 6.0 * r * big_r - 3.0 * big_r * big_r) /
+         (12.0 * d);
+}
+
+bool carries_force(const Contact& contact, const ContactMetricsOptions& options) {
+  return contact.impulse.x() > options.impulse_threshold;
+}
+
+/// Distinct body pairs (lower id first) touching through at least one force-bearing point, sorted.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> force_bearing_pairs(const ContactList& contacts,
+                                                                         const ContactMetricsOptions& options) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  for (const Contact& contact : contacts) {
+    if (!carries_force(contact, options)) continue;
+    pairs.emplace_back(std::min(contact.id.body_a, contact.id.body_b), std::max(contact.id.body_a, contact.id.body_b));
+  }
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  return pairs;
+}
+
+}  // namespace
 
 double kinetic_energy(const Model& model, const State& state) {
   double energy = 0.0;
@@ -12,6 +53,250 @@ double kinetic_energy(const Model& model, const State& state) {
               0.5 * w_body.dot(model.principal_inertia[i].cwiseProduct(w_body));
   }
   return energy;
+}
+
+double potential_energy(const Model& model, const State& state, const PotentialSettings& settings) {
+  switch (settings.kind) {
+    case PotentialSettings::Kind::none:
+      return 0.0;
+    case PotentialSettings::Kind::uniform: {
+      double energy = 0.0;
+      for (std::size_t i = 0; i < model.body_count(); ++i) {
+        if (model.is_grain(i)) energy -= model.mass[i] * settings.acceleration.dot(state.position[i]);
+      }
+      return energy;
+    }
+    case PotentialSettings::Kind::self: {
+      // U = 1/2 sum_i m_i phi_i with phi_i the exact direct-sum potential of the other grains
+      // (gravity/ direct method: deterministic whatever the thread count).
+      std::vector<double> positions, masses;
+      for (std::size_t i = 0; i < model.body_count(); ++i) {
+        if (!model.is_grain(i)) continue;
+        positions.insert(positions.end(), {state.position[i].x(), state.position[i].y(), state.position[i].z()});
+        masses.push_back(model.mass[i]);
+      }
+      if (masses.size() < 2) return 0.0;
+      gravity::GravityOptions options;
+      options.method = gravity::Method::direct;
+      options.G = settings.gravitational_constant;
+      if (settings.softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, settings.softening};
+      std::vector<double> accelerations(positions.size()), potential(masses.size());
+      gravity::compute_field(options, positions, masses, accelerations, potential);
+      double energy = 0.0;
+      for (std::size_t k = 0; k < masses.size(); ++k) energy += 0.5 * masses[k] * potential[k];
+      return energy;
+    }
+  }
+  return 0.0;
+}
+
+std::vector<int> grain_contact_counts(const Model& model, const ContactList& contacts,
+                                      const ContactMetricsOptions& options) {
+  std::vector<int> counts(model.body_count(), 0);
+  for (const auto& [a, b] : force_bearing_pairs(contacts, options)) {
+    if (model.is_grain(a) && model.is_grain(b)) {
+      ++counts[a];
+      ++counts[b];
+    }
+  }
+  return counts;
+}
+
+AggregateMetrics compute_metrics(const Model& model, const State& state, const ContactList& contacts,
+                                 const PotentialSettings& potential, const ContactMetricsOptions& options) {
+  AggregateMetrics m;
+  m.time = state.time;
+  m.step = state.step;
+  const std::size_t n = model.body_count();
+
+  // Energies, centre of mass, linear momentum.
+  double total_mass = 0.0;
+  Vec3 weighted_position = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!model.is_grain(i)) continue;
+    ++m.grains;
+    const double mass = model.mass[i];
+    const Vec3 w_body = state.orientation[i].conjugate() * state.angular_velocity[i];
+    m.translational_energy += 0.5 * mass * state.velocity[i].squaredNorm();
+    m.rotational_energy += 0.5 * w_body.dot(model.principal_inertia[i].cwiseProduct(w_body));
+    m.linear_momentum += mass * state.velocity[i];
+    total_mass += mass;
+    weighted_position += mass * state.position[i];
+    m.grain_volume += model.volume[i];
+  }
+  if (m.grains == 0) return m;
+  m.kinetic_energy = m.translational_energy + m.rotational_energy;
+  m.mean_kinetic_energy = m.kinetic_energy / static_cast<double>(m.grains);
+  m.potential_energy = potential_energy(model, state, potential);
+  m.total_energy = m.kinetic_energy + m.potential_energy;
+  m.centre_of_mass = total_mass > 0.0 ? Vec3(weighted_position / total_mass) : Vec3::Zero();
+
+  // Angular momentum about the centre of mass, sizes, D_max.
+  double reach = 0.0, diameter_sum = 0.0, equivalent_sum = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!model.is_grain(i)) continue;
+    const Vec3 arm = state.position[i] - m.centre_of_mass;
+    const Mat3 rotation = state.orientation[i].toRotationMatrix();
+    const Vec3 spin = rotation * model.principal_inertia[i].cwiseProduct(rotation.transpose() * state.angular_velocity[i]);
+    m.angular_momentum += model.mass[i] * arm.cross(state.velocity[i]) + spin;
+    reach = std::max(reach, arm.norm() + model.bounding_radius[i]);
+    diameter_sum += 2.0 * model.bounding_radius[i];
+    equivalent_sum += std::cbrt(6.0 * model.volume[i] / std::numbers::pi);
+  }
+  const auto grains = static_cast<double>(m.grains);
+  m.aggregate_diameter = 2.0 * reach;
+  m.mean_diameter = diameter_sum / grains;
+  m.equivalent_diameter = equivalent_sum / grains;
+  const double aggregate_volume = std::numbers::pi * std::pow(m.aggregate_diameter, 3) / 6.0;
+  m.packing_fraction = aggregate_volume > 0.0 ? m.grain_volume / aggregate_volume : 0.0;
+
+  // Inner sphere: diameter D_max / 2 about the centre of mass, away from the loose surface.
+  // Spheres contribute their exact overlap with it; polyhedra their whole volume when their
+  // centre is inside (an approximation whose error is confined to the inner sphere's surface).
+  const double inner_radius = 0.25 * m.aggregate_diameter;
+  double inner_volume = 0.0;
+  std::vector<char> inner(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!model.is_grain(i)) continue;
+    const double d = (state.position[i] - m.centre_of_mass).norm();
+    inner[i] = d < inner_radius ? 1 : 0;
+    m.inner_grains += inner[i];
+    if (model.shape_kind[i] == ShapeKind::sphere) {
+      inner_volume += ball_intersection_volume(inner_radius, model.sphere_radius(i), d);
+    } else if (inner[i] != 0) {
+      inner_volume += model.volume[i];
+    }
+  }
+  const double inner_sphere_volume = 4.0 / 3.0 * std::numbers::pi * std::pow(inner_radius, 3);
+  m.inner_packing_fraction = inner_sphere_volume > 0.0 ? inner_volume / inner_sphere_volume : 0.0;
+
+  // Contacts: points, pairs, coordination, rattlers.
+  double impulse_sum = 0.0;
+  for (const Contact& contact : contacts) {
+    ++m.contact_points;
+    if (!carries_force(contact, options)) continue;
+    ++m.force_bearing_points;
+    impulse_sum += contact.impulse.x();
+    m.max_normal_impulse = std::max(m.max_normal_impulse, contact.impulse.x());
+    if (contact.status == ContactStatus::sliding) ++m.sliding_points;
+  }
+  if (m.force_bearing_points > 0) {
+    m.mean_normal_impulse = impulse_sum / static_cast<double>(m.force_bearing_points);
+    m.sliding_fraction = static_cast<double>(m.sliding_points) / static_cast<double>(m.force_bearing_points);
+  }
+  const auto pairs = force_bearing_pairs(contacts, options);
+  std::vector<int> grain_neighbours(n, 0), all_neighbours(n, 0);
+  for (const auto& [a, b] : pairs) {
+    const bool grain_a = model.is_grain(a), grain_b = model.is_grain(b);
+    if (grain_a && grain_b) {
+      ++m.grain_contacts;
+      ++grain_neighbours[a];
+      ++grain_neighbours[b];
+    } else if (grain_a || grain_b) {
+      ++m.wall_contacts;
+    }
+    ++all_neighbours[a];
+    ++all_neighbours[b];
+  }
+  m.coordination = 2.0 * static_cast<double>(m.grain_contacts) / grains;
+
+  std::vector<char> rattler(n, 0);
+  std::int64_t inner_contact_sum = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!model.is_grain(i)) continue;
+    rattler[i] = all_neighbours[i] < 2 ? 1 : 0;
+    m.rattlers += rattler[i];
+    if (inner[i] != 0) inner_contact_sum += grain_neighbours[i];
+  }
+  std::int64_t backbone_contacts = 0;
+  for (const auto& [a, b] : pairs) {
+    if (model.is_grain(a) && model.is_grain(b) && rattler[a] == 0 && rattler[b] == 0) ++backbone_contacts;
+  }
+  const std::int64_t backbone_grains = m.grains - m.rattlers;
+  m.coordination_without_rattlers =
+      backbone_grains > 0 ? 2.0 * static_cast<double>(backbone_contacts) / static_cast<double>(backbone_grains) : 0.0;
+  m.inner_coordination =
+      m.inner_grains > 0 ? static_cast<double>(inner_contact_sum) / static_cast<double>(m.inner_grains) : 0.0;
+  return m;
+}
+
+ImpulseHistogram normal_impulse_histogram(const ContactList& contacts, int bins, const ContactMetricsOptions& options) {
+  ImpulseHistogram histogram;
+  std::vector<double> impulses;
+  for (const Contact& contact : contacts) {
+    if (carries_force(contact, options)) impulses.push_back(contact.impulse.x());
+  }
+  if (impulses.empty() || bins < 1) return histogram;
+  double sum = 0.0;
+  for (double r : impulses) sum += r;
+  const double mean = sum / static_cast<double>(impulses.size());
+  histogram.mean_normal_impulse = mean;
+  const double upper = std::max(1.0, std::ceil(*std::max_element(impulses.begin(), impulses.end()) / mean));
+  const double width = upper / bins;
+  histogram.count.assign(static_cast<std::size_t>(bins), 0);
+  for (double r : impulses) {
+    const auto bin = std::min(static_cast<std::size_t>(r / mean / width), static_cast<std::size_t>(bins - 1));
+    ++histogram.count[bin];
+  }
+  for (int k = 0; k < bins; ++k) {
+    histogram.bin_lower.push_back(k * width);
+    histogram.bin_upper.push_back((k + 1) * width);
+    histogram.density.push_back(static_cast<double>(histogram.count[static_cast<std::size_t>(k)]) /
+                                (static_cast<double>(impulses.size()) * width));
+  }
+  return histogram;
+}
+
+std::vector<std::string> metrics_column_names() {
+  return {"time", "step", "grains", "kinetic_energy", "mean_kinetic_energy", "translational_energy",
+          "rotational_energy", "potential_energy", "total_energy", "linear_momentum_x", "linear_momentum_y",
+          "linear_momentum_z", "angular_momentum_x", "angular_momentum_y", "angular_momentum_z", "centre_of_mass_x",
+          "centre_of_mass_y", "centre_of_mass_z", "aggregate_diameter", "mean_diameter", "equivalent_diameter",
+          "grain_volume", "packing_fraction", "inner_packing_fraction", "inner_grains", "contact_points",
+          "force_bearing_points", "sliding_points", "sliding_fraction", "grain_contacts", "wall_contacts",
+          "coordination", "rattlers", "coordination_without_rattlers", "inner_coordination", "mean_normal_impulse",
+          "max_normal_impulse"};
+}
+
+std::vector<double> metrics_row(const AggregateMetrics& m) {
+  const auto d = [](std::int64_t x) { return static_cast<double>(x); };
+  return {m.time,
+          d(m.step),
+          d(m.grains),
+          m.kinetic_energy,
+          m.mean_kinetic_energy,
+          m.translational_energy,
+          m.rotational_energy,
+          m.potential_energy,
+          m.total_energy,
+          m.linear_momentum.x(),
+          m.linear_momentum.y(),
+          m.linear_momentum.z(),
+          m.angular_momentum.x(),
+          m.angular_momentum.y(),
+          m.angular_momentum.z(),
+          m.centre_of_mass.x(),
+          m.centre_of_mass.y(),
+          m.centre_of_mass.z(),
+          m.aggregate_diameter,
+          m.mean_diameter,
+          m.equivalent_diameter,
+          m.grain_volume,
+          m.packing_fraction,
+          m.inner_packing_fraction,
+          d(m.inner_grains),
+          d(m.contact_points),
+          d(m.force_bearing_points),
+          d(m.sliding_points),
+          m.sliding_fraction,
+          d(m.grain_contacts),
+          d(m.wall_contacts),
+          m.coordination,
+          d(m.rattlers),
+          m.coordination_without_rattlers,
+          m.inner_coordination,
+          m.mean_normal_impulse,
+          m.max_normal_impulse};
 }
 
 }  // namespace rubble

@@ -1,8 +1,15 @@
 #pragma once
 // Metrics of a granular aggregate at one instant (seed 001 section 3): energies and momenta,
 // coordination number with and without rattlers, aggregate diameter, packing fraction, contact
-// statistics. Definitions are in docs/postprocessing.md; every function takes the immutable
-// Model and one State (plus the contacts where needed), so it runs during a run or on a run file.
+// statistics. The exact definitions are in docs/postprocessing.md; every function takes the
+// immutable Model and one State (plus the contacts where needed), so it runs during a run or on a
+// run file afterwards. Walls are bodies but never grains: they are left out of every sum over
+// grains; a grain's contact with a wall counts as force-bearing for the rattler test only.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "contact_detection/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 
@@ -12,5 +19,97 @@ namespace rubble {
 /// 1/2 m |v|^2 + 1/2 w . (R I R^T) w (translation + rotation; w and v in the world frame,
 /// I the principal inertia in the body frame, R the body's rotation). Walls contribute nothing.
 double kinetic_energy(const Model& model, const State& state);
+
+/// Which gravity the potential energy is measured in (the run's own gravity).
+struct PotentialSettings {
+  enum class Kind {
+    none,     ///< no gravity: the potential energy is 0
+    uniform,  ///< uniform field g: U = -sum_i m_i g . x_i
+    self,     ///< self-gravity of point masses: U = -G sum_{i<j} m_i m_j / |x_i - x_j|
+  };
+  Kind kind = Kind::none;                       ///< which gravity
+  Vec3 acceleration = Vec3::Zero();             ///< g, m/s^2, for Kind::uniform
+  double gravitational_constant = 6.674e-11;    ///< G, m^3 kg^-1 s^-2, for Kind::self
+  double softening = 0.0;                       ///< Plummer length eps, m (|x|^2 + eps^2 under the root)
+};
+
+/// Gravitational potential energy of the grains, J (see PotentialSettings). The self-energy of
+/// each grain (constant) is left out. Self-gravity is summed exactly (O(N^2), in a fixed order).
+double potential_energy(const Model& model, const State& state, const PotentialSettings& settings);
+
+/// Settings of the contact-based metrics.
+struct ContactMetricsOptions {
+  /// A contact point carries force when its normal impulse r_n exceeds this (N s). 0 means any
+  /// strictly positive impulse.
+  double impulse_threshold = 0.0;
+};
+
+/// The metrics of one snapshot (docs/postprocessing.md gives each formula).
+struct AggregateMetrics {
+  double time = 0.0;       ///< s
+  std::int64_t step = 0;   ///< steps taken
+  std::int64_t grains = 0; ///< N_p, bodies that are grains (walls excluded)
+
+  // --- energies and momenta (grains only) ---
+  double kinetic_energy = 0.0;          ///< J, sum of translation + rotation
+  double mean_kinetic_energy = 0.0;     ///< <E_c>, J per grain
+  double translational_energy = 0.0;    ///< J, sum 1/2 m v^2
+  double rotational_energy = 0.0;       ///< J, sum 1/2 w.Iw
+  double potential_energy = 0.0;        ///< J, gravitational (PotentialSettings)
+  double total_energy = 0.0;            ///< J, kinetic + potential
+  Vec3 linear_momentum = Vec3::Zero();  ///< kg m/s, sum m v
+  Vec3 angular_momentum = Vec3::Zero(); ///< kg m^2/s, about the grains' centre of mass: sum m (x - x_cm) x v + R I R^T w
+
+  // --- geometry ---
+  Vec3 centre_of_mass = Vec3::Zero();   ///< m, of the grains
+  double aggregate_diameter = 0.0;      ///< D_max = 2 max_i (|x_i - x_cm| + r_i), r_i bounding radius, m
+  double mean_diameter = 0.0;           ///< <d> = mean of 2 r_i, m
+  double equivalent_diameter = 0.0;     ///< d* = mean of (6 V_i / pi)^(1/3), m
+  double grain_volume = 0.0;            ///< sum V_i, m^3
+  double packing_fraction = 0.0;        ///< nu = sum V_i / (pi D_max^3 / 6)
+  double inner_packing_fraction = 0.0;  ///< grain volume inside the sphere of diameter D_max/2 about x_cm, over its volume
+  std::int64_t inner_grains = 0;        ///< grains whose centre is inside that inner sphere
+
+  // --- contacts ---
+  std::int64_t contact_points = 0;          ///< contact points in the list (any impulse)
+  std::int64_t force_bearing_points = 0;    ///< points with r_n > threshold (grain-grain and grain-wall)
+  std::int64_t sliding_points = 0;          ///< force-bearing points whose status is sliding
+  double sliding_fraction = 0.0;            ///< sliding_points / force_bearing_points (0 if none)
+  std::int64_t grain_contacts = 0;          ///< N_c: grain pairs touching through >= 1 force-bearing point
+  std::int64_t wall_contacts = 0;           ///< grain-wall pairs touching through >= 1 force-bearing point
+  double coordination = 0.0;                ///< Z = 2 N_c / N_p
+  std::int64_t rattlers = 0;                ///< grains with fewer than 2 force-bearing contacts (walls count)
+  double coordination_without_rattlers = 0.0;  ///< Z' = 2 N_c' / N_p' over the non-rattlers
+  double inner_coordination = 0.0;          ///< mean grain-grain contacts of the inner grains (bulk Z)
+  double mean_normal_impulse = 0.0;         ///< N s, mean r_n over force-bearing points
+  double max_normal_impulse = 0.0;          ///< N s, largest r_n
+};
+
+/// Every metric of one snapshot. `contacts` are the snapshot's contact points.
+AggregateMetrics compute_metrics(const Model& model, const State& state, const ContactList& contacts,
+                                 const PotentialSettings& potential = {}, const ContactMetricsOptions& options = {});
+
+/// Force-bearing grain-grain contacts of each body (pairs, not points); walls get 0. What Z is
+/// built from; exposed for per-grain output (VTK) and tests.
+std::vector<int> grain_contact_counts(const Model& model, const ContactList& contacts,
+                                      const ContactMetricsOptions& options = {});
+
+/// Histogram of r_n / <r_n> over the force-bearing contact points: `bins` equal bins over
+/// [0, upper] (upper = max r_n / <r_n>, rounded up to an integer); empty if no point carries force.
+struct ImpulseHistogram {
+  std::vector<double> bin_lower;  ///< lower edge of each bin (in units of the mean)
+  std::vector<double> bin_upper;  ///< upper edge of each bin
+  std::vector<std::int64_t> count;///< points per bin
+  std::vector<double> density;    ///< probability density: count / (total * width)
+  double mean_normal_impulse = 0.0;  ///< <r_n>, N s
+};
+/// The normal impulse distribution of one snapshot.
+ImpulseHistogram normal_impulse_histogram(const ContactList& contacts, int bins = 20,
+                                          const ContactMetricsOptions& options = {});
+
+/// Names of the scalar columns of metrics_row(), in order (the CSV header and HDF5 dataset names).
+std::vector<std::string> metrics_column_names();
+/// The metrics as one row of numbers, in the order of metrics_column_names() (vectors as x, y, z).
+std::vector<double> metrics_row(const AggregateMetrics& metrics);
 
 }  // namespace rubble

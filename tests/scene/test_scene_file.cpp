@@ -246,6 +246,19 @@ TEST(DefaultScene, IsTheExampleFileAndLoadsFromIt) {
   }
 }
 
+TEST(Examples, EveryExampleFileParses) {
+  std::size_t count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(RUBBLE_EXAMPLES_DIR)) {
+    if (entry.path().extension() != ".toml") continue;
+    ++count;
+    EXPECT_NO_THROW({
+      const Scene scene = load_scene_file(entry.path());
+      EXPECT_GT(scene.model.body_count(), 0u);
+    }) << entry.path();
+  }
+  EXPECT_GE(count, 2u);
+}
+
 TEST(DefaultScene, SameSeedSameGrainsOtherSeedOtherGrains) {
   std::string text = default_scene_toml();
   const Scene a = parse_scene(text, "a.toml");

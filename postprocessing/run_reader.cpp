@@ -1,0 +1,312 @@
+#include "postprocessing/run_reader.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <set>
+#include <stdexcept>
+
+#include "postprocessing/hdf5_io.hpp"
+#include "postprocessing/run_file.hpp"
+
+namespace rubble {
+namespace {
+
+namespace fs = std::filesystem;
+using hdf5::Handle;
+
+[[noreturn]] void bad(const fs::path& file, const std::string& message) {
+  throw std::runtime_error(file.string() + ": " + message);
+}
+
+/// Checks that a dataset has `rows` rows of `columns` values (columns 0: a 1-D dataset).
+template <typename T>
+void expect_shape(const hdf5::Array<T>& array, std::size_t rows, std::size_t columns, const std::string& name,
+                  const fs::path& file) {
+  const bool ok = columns == 0 ? array.dims.size() == 1 && array.dims[0] == rows
+                               : array.dims.size() == 2 && array.dims[0] == rows && array.dims[1] == columns;
+  if (!ok) {
+    bad(file, "dataset '" + name + "' has the wrong shape (expected " + std::to_string(rows) +
+                  (columns ? " x " + std::to_string(columns) : std::string()) + ")");
+  }
+}
+
+std::vector<Vec3> read_vec3s(hid_t parent, const std::string& name, std::size_t rows, const fs::path& file) {
+  const hdf5::Array<double> array = hdf5::read_doubles(parent, name, file);
+  expect_shape(array, rows, 3, name, file);
+  std::vector<Vec3> vectors(rows);
+  for (std::size_t i = 0; i < rows; ++i) vectors[i] = Vec3(array.values[3 * i], array.values[3 * i + 1], array.values[3 * i + 2]);
+  return vectors;
+}
+
+/// Reads a 3-column dataset whose row count is whatever the file says.
+std::vector<Vec3> read_vec3s_any(hid_t parent, const std::string& name, const fs::path& file) {
+  const hdf5::Array<double> array = hdf5::read_doubles(parent, name, file);
+  return read_vec3s(parent, name, array.dims.empty() ? 0 : static_cast<std::size_t>(array.dims[0]), file);
+}
+
+std::vector<double> read_column(hid_t parent, const std::string& name, std::size_t rows, const fs::path& file) {
+  hdf5::Array<double> array = hdf5::read_doubles(parent, name, file);
+  expect_shape(array, rows, 0, name, file);
+  return std::move(array.values);
+}
+
+std::vector<std::int64_t> read_int_column(hid_t parent, const std::string& name, std::size_t rows, const fs::path& file) {
+  hdf5::Array<std::int64_t> array = hdf5::read_int64s(parent, name, file);
+  expect_shape(array, rows, 0, name, file);
+  return std::move(array.values);
+}
+
+std::vector<std::int64_t> read_int_column_any(hid_t parent, const std::string& name, const fs::path& file) {
+  hdf5::Array<std::int64_t> array = hdf5::read_int64s(parent, name, file);
+  if (array.dims.size() != 1) bad(file, "dataset '" + name + "' is not 1-D");
+  return std::move(array.values);
+}
+
+Model read_model(hid_t root, const fs::path& file) {
+  Handle group = hdf5::open_group(root, "model", file);
+  const hid_t g = group.get();
+  Model model;
+  const std::vector<std::int64_t> kind_codes = read_int_column_any(g, "body_shape_kind", file);
+  const std::size_t n = kind_codes.size();
+  const std::vector<std::int64_t> shape_index = read_int_column(g, "body_shape_index", n, file);
+  const std::vector<std::int64_t> material = read_int_column(g, "material", n, file);
+  model.mass = read_column(g, "mass", n, file);
+  model.volume = read_column(g, "volume", n, file);
+  model.bounding_radius = read_column(g, "bounding_radius", n, file);
+  const std::vector<double> radius = read_column(g, "radius", n, file);
+  model.principal_inertia = read_vec3s(g, "principal_inertia", n, file);
+
+  // Materials and contact laws.
+  {
+    Handle materials = hdf5::open_group(g, "materials", file);
+    const std::vector<std::string> names = hdf5::read_strings(materials.get(), "name", file);
+    const std::vector<double> density = read_column(materials.get(), "density", names.size(), file);
+    for (std::size_t m = 0; m < names.size(); ++m) model.materials.push_back({names[m], density[m]});
+    Handle laws = hdf5::open_group(g, "contact_laws", file);
+    const std::size_t count = names.size();
+    const hdf5::Array<double> friction = hdf5::read_doubles(laws.get(), "friction", file);
+    const hdf5::Array<double> restitution = hdf5::read_doubles(laws.get(), "restitution", file);
+    expect_shape(friction, count, count, "contact_laws/friction", file);
+    expect_shape(restitution, count, count, "contact_laws/restitution", file);
+    model.contact_laws.reset(static_cast<int>(count), ContactLaw{});
+    for (std::size_t k = 0; k < count * count; ++k) {
+      model.contact_laws.laws[k] = ContactLaw{friction.values[k], restitution.values[k]};
+    }
+  }
+
+  // Shape tables.
+  {
+    Handle polyhedra = hdf5::open_group(g, "polyhedra", file);
+    const hid_t p = polyhedra.get();
+    const std::vector<Vec3> vertices = read_vec3s_any(p, "vertices", file);
+    const std::vector<std::int64_t> vertex_offset = read_int_column_any(p, "vertex_offset", file);
+    const std::vector<std::int64_t> face_vertices = read_int_column_any(p, "face_vertices", file);
+    const std::vector<std::int64_t> face_offset = read_int_column_any(p, "face_offset", file);
+    const std::vector<std::int64_t> polyhedron_face_offset = read_int_column_any(p, "polyhedron_face_offset", file);
+    const std::vector<Vec3> face_normal = read_vec3s(p, "face_normal", face_offset.empty() ? 0 : face_offset.size() - 1, file);
+    const std::size_t count = vertex_offset.empty() ? 0 : vertex_offset.size() - 1;
+    const auto in_range = [](std::int64_t value, std::size_t end) { return value >= 0 && static_cast<std::size_t>(value) <= end; };
+    if (polyhedron_face_offset.size() != count + 1) bad(file, "polyhedra: vertex_offset and polyhedron_face_offset differ in length");
+    for (std::size_t s = 0; s < count; ++s) {
+      ConvexPolyhedron shape;
+      const std::int64_t v0 = vertex_offset[s], v1 = vertex_offset[s + 1];
+      const std::int64_t f0 = polyhedron_face_offset[s], f1 = polyhedron_face_offset[s + 1];
+      if (!in_range(v0, vertices.size()) || !in_range(v1, vertices.size()) || v1 < v0 ||
+          !in_range(f0, face_normal.size()) || !in_range(f1, face_normal.size()) || f1 < f0) {
+        bad(file, "polyhedra: offsets of polyhedron " + std::to_string(s) + " out of range");
+      }
+      shape.vertices.assign(vertices.begin() + v0, vertices.begin() + v1);
+      std::set<std::pair<int, int>> edges;
+      for (std::int64_t f = f0; f < f1; ++f) {
+        const std::int64_t k0 = face_offset[static_cast<std::size_t>(f)], k1 = face_offset[static_cast<std::size_t>(f) + 1];
+        if (!in_range(k0, face_vertices.size()) || !in_range(k1, face_vertices.size()) || k1 < k0 + 3) {
+          bad(file, "polyhedra: face " + std::to_string(f) + " has bad offsets or fewer than 3 vertices");
+        }
+        std::vector<int> face;
+        for (std::int64_t k = k0; k < k1; ++k) {
+          const std::int64_t v = face_vertices[static_cast<std::size_t>(k)];
+          if (v < 0 || v >= v1 - v0) bad(file, "polyhedra: face " + std::to_string(f) + " has a vertex index out of range");
+          face.push_back(static_cast<int>(v));
+        }
+        for (std::size_t k = 0; k < face.size(); ++k) {
+          const int a = face[k], b = face[(k + 1) % face.size()];
+          edges.insert({std::min(a, b), std::max(a, b)});
+        }
+        shape.faces.push_back(std::move(face));
+        shape.face_normals.push_back(face_normal[static_cast<std::size_t>(f)]);
+      }
+      shape.edges.assign(edges.begin(), edges.end());
+      model.polyhedra.push_back(std::move(shape));
+    }
+    Handle planes = hdf5::open_group(g, "planes", file);
+    for (const Vec3& normal : read_vec3s_any(planes.get(), "normal", file)) model.planes.push_back(Plane{normal});
+    Handle boxes = hdf5::open_group(g, "boxes", file);
+    for (const Vec3& half : read_vec3s_any(boxes.get(), "half_extents", file)) model.boxes.push_back(Box{half});
+  }
+
+  // Per body; spheres get their table back from the per-body radius.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (kind_codes[i] < 0 || kind_codes[i] > static_cast<std::int64_t>(ShapeKind::box)) {
+      bad(file, "model: body " + std::to_string(i) + " has an unknown shape kind " + std::to_string(kind_codes[i]));
+    }
+    const auto kind = static_cast<ShapeKind>(kind_codes[i]);
+    const std::int64_t index = shape_index[i];
+    const std::size_t table_size = kind == ShapeKind::sphere       ? static_cast<std::size_t>(-1)
+                                   : kind == ShapeKind::polyhedron ? model.polyhedra.size()
+                                   : kind == ShapeKind::plane      ? model.planes.size()
+                                                                   : model.boxes.size();
+    if (index < 0 || static_cast<std::size_t>(index) >= table_size) {
+      bad(file, "model: body " + std::to_string(i) + " has a shape index out of range");
+    }
+    if (material[i] < 0 || static_cast<std::size_t>(material[i]) >= model.materials.size()) {
+      bad(file, "model: body " + std::to_string(i) + " has a material out of range");
+    }
+    if (kind == ShapeKind::sphere) {
+      if (model.spheres.size() <= static_cast<std::size_t>(index)) model.spheres.resize(static_cast<std::size_t>(index) + 1);
+      model.spheres[static_cast<std::size_t>(index)].radius = radius[i];
+    }
+    model.shape_kind.push_back(kind);
+    model.shape_index.push_back(static_cast<int>(index));
+    model.material.push_back(static_cast<int>(material[i]));
+    model.inverse_mass.push_back(model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0);
+    model.inverse_inertia.push_back(model.mass[i] > 0.0 ? Vec3(model.principal_inertia[i].cwiseInverse()) : Vec3::Zero());
+  }
+  return model;
+}
+
+}  // namespace
+
+struct RunReader::Impl {
+  fs::path path;
+  Handle file;
+  Model model;
+  std::string scene_text;
+  std::vector<std::string> snapshot_names;
+  mutable double time_step = -1.0;  // cached; -1: not computed yet
+};
+
+RunReader::RunReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RunReader::RunReader(RunReader&&) noexcept = default;
+RunReader& RunReader::operator=(RunReader&&) noexcept = default;
+RunReader::~RunReader() = default;
+
+RunReader RunReader::open(const fs::path& path) {
+  const hdf5::QuietErrors quiet;
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->file = hdf5::open_file(path);
+  const hid_t root = impl->file.get();
+  if (H5Aexists(root, "format") <= 0 || hdf5::read_string_attribute(root, "format", path) != run_file_format) {
+    bad(path, "not a rubble run file (root attribute format != \"rubble-run\")");
+  }
+  const double version = hdf5::read_double_attribute(root, "format_version", path);
+  if (version > run_file_format_version) {
+    bad(path, "run file format version " + std::to_string(static_cast<int>(version)) + " is newer than this rubble reads (" +
+                  std::to_string(run_file_format_version) + ")");
+  }
+  impl->scene_text = hdf5::read_string(root, "scene", path);
+  impl->model = read_model(root, path);
+  Handle snapshots = hdf5::open_group(root, "snapshots", path);
+  impl->snapshot_names = hdf5::link_names(snapshots.get(), path);
+  std::sort(impl->snapshot_names.begin(), impl->snapshot_names.end());  // NNNNNN: by name is by time
+  return RunReader(std::move(impl));
+}
+
+const fs::path& RunReader::path() const { return impl_->path; }
+const Model& RunReader::model() const { return impl_->model; }
+const std::string& RunReader::scene_text() const { return impl_->scene_text; }
+std::size_t RunReader::snapshot_count() const { return impl_->snapshot_names.size(); }
+
+RunSnapshot RunReader::read_snapshot(std::size_t index) const {
+  const Impl& r = *impl_;
+  if (index >= r.snapshot_names.size()) {
+    bad(r.path, "snapshot " + std::to_string(index) + " requested, the file has " + std::to_string(r.snapshot_names.size()));
+  }
+  const hdf5::QuietErrors quiet;
+  const std::string name = "snapshots/" + r.snapshot_names[index];
+  Handle group = hdf5::open_group(r.file.get(), name, r.path);
+  const hid_t g = group.get();
+  const fs::path where = r.path.string() + ":/" + name;
+  RunSnapshot snapshot;
+  State& state = snapshot.state;
+  const std::size_t n = r.model.body_count();
+  state.time = hdf5::read_double_attribute(g, "time", where);
+  state.step = static_cast<std::int64_t>(hdf5::read_double_attribute(g, "step", where));
+  state.position = read_vec3s(g, "position", n, where);
+  const hdf5::Array<double> orientation = hdf5::read_doubles(g, "orientation", where);
+  expect_shape(orientation, n, 4, "orientation", where);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double* q = &orientation.values[4 * i];
+    state.orientation.emplace_back(q[0], q[1], q[2], q[3]);  // Eigen's constructor is (w, x, y, z)
+  }
+  state.velocity = read_vec3s(g, "velocity", n, where);
+  state.angular_velocity = read_vec3s(g, "angular_velocity", n, where);
+
+  const std::vector<std::int64_t> body_a = read_int_column_any(g, "contact_body_a", where);
+  const std::size_t c = body_a.size();
+  const std::vector<std::int64_t> body_b = read_int_column(g, "contact_body_b", c, where);
+  const std::vector<Vec3> point = read_vec3s(g, "contact_point", c, where);
+  const std::vector<Vec3> normal = read_vec3s(g, "contact_normal", c, where);
+  const std::vector<Vec3> tangent_t = read_vec3s(g, "contact_tangent_t", c, where);
+  const std::vector<Vec3> tangent_s = read_vec3s(g, "contact_tangent_s", c, where);
+  const std::vector<Vec3> impulse = read_vec3s(g, "contact_impulse", c, where);
+  const std::vector<double> gap = read_column(g, "contact_gap", c, where);
+  const std::vector<std::int64_t> status = read_int_column(g, "contact_status", c, where);
+  snapshot.contacts.resize(c);
+  for (std::size_t k = 0; k < c; ++k) {
+    if (body_a[k] < 0 || body_b[k] < 0 || static_cast<std::size_t>(body_a[k]) >= n || static_cast<std::size_t>(body_b[k]) >= n) {
+      bad(where, "contact " + std::to_string(k) + " names a body out of range");
+    }
+    if (status[k] < 0 || status[k] > static_cast<std::int64_t>(ContactStatus::sliding)) {
+      bad(where, "contact " + std::to_string(k) + " has an unknown status");
+    }
+    Contact& contact = snapshot.contacts[k];
+    contact.id.body_a = static_cast<std::uint32_t>(body_a[k]);
+    contact.id.body_b = static_cast<std::uint32_t>(body_b[k]);
+    contact.point = point[k];
+    contact.frame.col(0) = normal[k];
+    contact.frame.col(1) = tangent_t[k];
+    contact.frame.col(2) = tangent_s[k];
+    contact.gap = gap[k];
+    contact.impulse = impulse[k];
+    contact.status = static_cast<ContactStatus>(status[k]);
+  }
+  return snapshot;
+}
+
+RunSeries RunReader::read_series() const {
+  const Impl& r = *impl_;
+  const hdf5::QuietErrors quiet;
+  Handle group = hdf5::open_group(r.file.get(), "series", r.path);
+  const hid_t g = group.get();
+  RunSeries series;
+  series.step = read_int_column_any(g, "step", r.path);
+  const std::size_t rows = series.step.size();
+  series.time = read_column(g, "time", rows, r.path);
+  series.kinetic_energy = read_column(g, "kinetic_energy", rows, r.path);
+  series.contacts = read_int_column(g, "contacts", rows, r.path);
+  series.active_contacts = read_int_column(g, "active_contacts", rows, r.path);
+  series.iterations = read_int_column(g, "iterations", rows, r.path);
+  series.residual = read_column(g, "residual", rows, r.path);
+  series.wall_seconds = read_column(g, "wall_seconds", rows, r.path);
+  Handle stages = hdf5::open_group(g, "stage_seconds", r.path);
+  series.stage_names = hdf5::link_names(stages.get(), r.path);
+  for (const std::string& name : series.stage_names) series.stage_seconds.push_back(read_column(stages.get(), name, rows, r.path));
+  return series;
+}
+
+double RunReader::time_step() const {
+  if (impl_->time_step >= 0.0) return impl_->time_step;
+  const RunSeries series = read_series();
+  double h = 0.0;
+  const std::size_t rows = series.step.size();
+  if (rows >= 2 && series.step[rows - 1] > series.step[0]) {
+    h = (series.time[rows - 1] - series.time[0]) / static_cast<double>(series.step[rows - 1] - series.step[0]);
+  } else if (rows == 1 && series.step[0] > 0) {
+    h = series.time[0] / static_cast<double>(series.step[0]);
+  }
+  impl_->time_step = h;
+  return h;
+}
+
+}  // namespace rubble
