@@ -74,18 +74,19 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
   for (int iteration = 0; iteration < 40; ++iteration) {
     const double value = f(phi, c);
     if (std::isnan(value)) break;
-    const Vec2 dir(std::cos(phi), std::sin(phi));
-    const double slip = c.tangential_velocity.dot(dir);
-    if (std::abs(value) <= 1e-14 * (u_free.norm() + c.tangential_velocity.norm()) && slip >= 0.0) {
-      solution.impulse = c.impulse;
-      solution.regime = LocalSolution::Regime::sliding;
-      return solution;
-    }
     constexpr double step = 1e-7;
     SlidingCandidate scratch;
     const double derivative = (f(phi + step, scratch) - f(phi - step, scratch)) / (2.0 * step);
     if (!std::isfinite(derivative) || derivative == 0.0) break;
-    phi -= std::clamp(value / derivative, -0.5, 0.5);
+    const double correction = std::clamp(value / derivative, -0.5, 0.5);
+    phi -= correction;
+    if (std::abs(correction) < 1e-13) {
+      const Vec2 dir(std::cos(phi), std::sin(phi));
+      if (!sliding_candidate(W, u_free, mu, dir, c) || c.tangential_velocity.dot(dir) < 0.0) break;
+      solution.impulse = c.impulse;
+      solution.regime = LocalSolution::Regime::sliding;
+      return solution;
+    }
   }
 
   // Fallback: scan the angle of d for sign changes of the misalignment where u_T . d > 0, bisect

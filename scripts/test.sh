@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# One command on a fresh Debian 12 machine (as root): install what rubble needs, build with
+# warnings as errors, run every test; then build again with AddressSanitizer and
+# UndefinedBehaviorSanitizer and run the tests there too. .ci/run calls this script.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+jobs=$(nproc)
+
+echo "== release build (-Wall -Wextra -Werror) =="
+cmake -S . -B build/ci -G Ninja -DCMAKE_BUILD_TYPE=Release -DRUBBLE_WERROR=ON
+cmake --build build/ci -j "$jobs"
+echo "== tests =="
+ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 900
+
+echo "== address + undefined-behaviour sanitizer build =="
+cmake -S . -B build/sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRUBBLE_WERROR=ON \
+  -DRUBBLE_SANITIZE=address,undefined -DRUBBLE_BUILD_BENCH=OFF
+cmake --build build/sanitize -j "$jobs"
+echo "== tests under sanitizers (label 'slow' excluded) =="
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build/sanitize -j "$jobs" --output-on-failure --timeout 1800 -LE slow
