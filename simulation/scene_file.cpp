@@ -460,6 +460,13 @@ class SceneParser {
     integrator.time_step = time->number("dt", positive());
     integrator.theta = time->number_or("theta", 0.5, closed(0.5, 1.0));
     scene_.run.end_time = time->number("end_time", positive());
+    // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take.
+    constexpr double max_steps = 1e12;
+    if (scene_.run.end_time / integrator.time_step > max_steps) {
+      time->fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
+                               show_short(scene_.run.end_time / max_steps) + " s), got dt = " +
+                               show(integrator.time_step));
+    }
     if (integrator.time_step > scene_.run.end_time) {
       time->fail_key("dt", "expected dt <= end_time (" + show(scene_.run.end_time) + " s), got " +
                                show(integrator.time_step));
