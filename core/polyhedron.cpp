@@ -11,16 +11,18 @@
 namespace rubble {
 namespace {
 
-[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("convex polyhedron: " + what); }
+[[noreturn]] void fail(const std::string& what, int face = -1, int vertex = -1) {
+  throw PolyhedronError("convex polyhedron: " + what, face, vertex);
+}
 
 void check_indices(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces) {
   const int n = static_cast<int>(vertices.size());
   for (std::size_t f = 0; f < faces.size(); ++f) {
-    if (faces[f].size() < 3) fail("face " + std::to_string(f) + " has fewer than 3 vertices");
+    if (faces[f].size() < 3) fail("face " + std::to_string(f) + " has fewer than 3 vertices", static_cast<int>(f));
     for (int v : faces[f]) {
       if (v < 0 || v >= n) {
         fail("face " + std::to_string(f) + " uses vertex " + std::to_string(v) + ", expected 0.." +
-             std::to_string(n - 1));
+             std::to_string(n - 1), static_cast<int>(f));
       }
     }
   }
@@ -93,7 +95,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
   if (faces.size() < 4) fail("needs at least 4 faces, got " + std::to_string(faces.size()));
   check_indices(vertices, faces);
   for (const Vec3& v : vertices) {
-    if (!v.allFinite()) fail("a vertex coordinate is not finite");
+    if (!v.allFinite()) fail("a vertex coordinate is not finite");  // checked by readers first
   }
 
   // --- topology: every directed edge once, its reverse once (closed, oriented 2-manifold) ---
@@ -107,13 +109,13 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     for (std::size_t i = 0; i < face.size(); ++i) {
       const int from = face[i];
       const int to = face[(i + 1) % face.size()];
-      if (from == to) fail("face " + std::to_string(f) + " repeats vertex " + std::to_string(from));
+      if (from == to) fail("face " + std::to_string(f) + " repeats vertex " + std::to_string(from), static_cast<int>(f));
       directed.push_back({from, to, static_cast<int>(f)});
       used[static_cast<std::size_t>(from)] = 1;
     }
   }
   for (std::size_t v = 0; v < vertices.size(); ++v) {
-    if (!used[v]) fail("vertex " + std::to_string(v) + " is on no face");
+    if (!used[v]) fail("vertex " + std::to_string(v) + " is on no face", -1, static_cast<int>(v));
   }
   std::sort(directed.begin(), directed.end(),
             [](const DirectedEdge& x, const DirectedEdge& y) { return std::tie(x.from, x.to) < std::tie(y.from, y.to); });
@@ -121,7 +123,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     if (directed[i].from == directed[i - 1].from && directed[i].to == directed[i - 1].to) {
       fail("edge " + std::to_string(directed[i].from) + "-" + std::to_string(directed[i].to) +
            " is used twice in the same direction (faces " + std::to_string(directed[i - 1].face) + " and " +
-           std::to_string(directed[i].face) + "): inconsistent orientation or non-manifold");
+           std::to_string(directed[i].face) + "): inconsistent orientation or non-manifold",
+           directed[i].face);
     }
   }
   auto find_directed = [&](int from, int to) -> const DirectedEdge* {
@@ -137,7 +140,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     const DirectedEdge* reverse = find_directed(e.to, e.from);
     if (reverse == nullptr) {
       fail("edge " + std::to_string(e.from) + "-" + std::to_string(e.to) + " of face " + std::to_string(e.face) +
-           " has no neighbouring face: the surface is not closed");
+           " has no neighbouring face: the surface is not closed",
+           e.face);
     }
     if (e.from < e.to) {
       edges.emplace_back(e.from, e.to);
@@ -149,7 +153,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
   if (euler != 2) fail("Euler characteristic V - E + F = " + std::to_string(euler) + ", expected 2 (a sphere)");
 
   // --- mass properties, body frame ---
-  const PolyhedronMassProperties mass = polyhedron_mass_properties(vertices, faces);
+  const PolyhedronMassProperties mass =
+      polyhedron_mass_properties(vertices, options.mass_faces.empty() ? faces : options.mass_faces);
   double extent = 0.0;
   for (const Vec3& v : vertices) extent = std::max(extent, (v - mass.centroid).norm());
   if (!(mass.volume > 1e-12 * std::pow(2.0 * extent, 3))) {
@@ -186,7 +191,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     const auto& face = shape.faces[f];
     const Vec3 area_normal = newell_normal(shape.vertices, face);
     if (!(area_normal.norm() > 1e-14 * shape.bounding_radius * shape.bounding_radius)) {
-      fail("face " + std::to_string(f) + " has zero area");
+      fail("face " + std::to_string(f) + " has zero area", static_cast<int>(f));
     }
     const Vec3 n = area_normal.normalized();
     double own = 0.0;
@@ -197,7 +202,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       const double h = n.dot(shape.vertices[v]);
       if (h > own + tolerance) {
         fail("not convex: vertex " + std::to_string(v) + " lies " + std::to_string(h - own) +
-             " m outside the plane of face " + std::to_string(f));
+             " m outside the plane of face " + std::to_string(f),
+             static_cast<int>(f), static_cast<int>(v));
       }
       offset = std::max(offset, h);
     }
@@ -207,11 +213,13 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       const Vec3& r = shape.vertices[static_cast<std::size_t>(face[(i + 2) % face.size()])];
       if (n.dot(p) < own - tolerance) {
         fail("face " + std::to_string(f) + " is not planar: vertex " + std::to_string(face[i]) + " is " +
-             std::to_string(own - n.dot(p)) + " m below its plane");
+             std::to_string(own - n.dot(p)) + " m below its plane",
+             static_cast<int>(f));
       }
       // A convex face turns left at every corner (seen from outside).
       if (n.dot((q - p).cross(r - q)) < -tolerance * (q - p).norm()) {
-        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " + std::to_string(face[(i + 1) % face.size()]));
+        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " + std::to_string(face[(i + 1) % face.size()]),
+             static_cast<int>(f));
       }
     }
     shape.face_normals.push_back(n);

@@ -3,6 +3,8 @@
 // body-frame shape (centroid at the origin, principal axes of inertia) with its topology
 // (face normals, edges, adjacency) filled in. The contact detection of polyhedra
 // (contact_detection/common_plane.hpp) relies on everything make_convex_polyhedron fills.
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/math.hpp"
@@ -10,6 +12,16 @@
 #include "core/shapes.hpp"
 
 namespace rubble {
+
+/// Thrown for a mesh that is not a valid convex polyhedron; says which face or vertex is at
+/// fault (-1 when the fault is global) so a file reader can point at the line.
+struct PolyhedronError : std::invalid_argument {
+  int face = -1;    ///< index of the offending face, or -1
+  int vertex = -1;  ///< index of the offending vertex, or -1
+  /// The message, and the face and vertex at fault.
+  PolyhedronError(const std::string& what, int face_index = -1, int vertex_index = -1)
+      : std::invalid_argument(what), face(face_index), vertex(vertex_index) {}
+};
 
 /// Volume, centroid and inertia of a closed polyhedral surface, for a unit density.
 struct PolyhedronMassProperties {
@@ -35,6 +47,9 @@ struct PolyhedronBuildOptions {
   /// fraction of the polyhedron's diameter before the mesh is rejected as not convex. The default
   /// tolerates coordinates written with ~7 significant digits; merged faces need more.
   double convexity_tolerance = 1e-6;
+  /// Faces used for the mass properties instead of `faces` when not empty: the exact
+  /// triangulation of a mesh whose merged faces are slightly bent (same vertices).
+  std::vector<std::vector<int>> mass_faces;
 };
 
 /// Where the body frame sits in the frame of the input vertices: x_input = centroid + orientation x_body.
@@ -52,7 +67,7 @@ struct PolyhedronPose {
 /// offsets, edges, edge-face and vertex adjacency, bounding box and sphere, volume and
 /// principal inertia per density. `pose` (optional) receives the body frame's pose in the
 /// input frame, so a shape read from a file can be placed where the file put it.
-/// Throws std::invalid_argument with a message saying what is wrong.
+/// Throws PolyhedronError with a message saying what is wrong.
 ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
                                         const PolyhedronBuildOptions& options = {}, PolyhedronPose* pose = nullptr);
 

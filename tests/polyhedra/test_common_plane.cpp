@@ -1,0 +1,221 @@
+// contact_detection/common_plane: the common plane of random polyhedra at random poses against an
+// independent reference, the Minkowski difference D = B - A built by CGAL's convex hull of all
+// vertex differences: the bodies are apart iff the origin is outside D; the distance is then the
+// distance from the origin to D (normal = direction of its closest point), and when they
+// overlap the penetration depth is the distance from the origin to the nearest facet plane of
+// D (normal = minus that facet's outward normal).
+#include "contact_detection/common_plane.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/polyhedron.hpp"
+#include "preprocessing/random_polyhedron.hpp"
+
+namespace rubble {
+namespace {
+
+struct Reference {
+  double gap = 0.0;             // signed: distance, or -(penetration depth)
+  Vec3 normal = Vec3::Zero();   // from A to B
+  bool unique = true;           // the optimal normal is isolated (compare normals only then)
+};
+
+/// Closest point of triangle (a, b, c) to the origin (Voronoi regions; Ericson 2005 sec. 5.1.5).
+Vec3 closest_on_triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = -a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3 bp = -b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Vec3 cp = -c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  const double denominator = 1.0 / (va + vb + vc);
+  return a + ab * (vb * denominator) + ac * (vc * denominator);
+}
+
+Reference minkowski_reference(const PlacedPolyhedron& a, const PlacedPolyhedron& b) {
+  std::vector<Vec3> difference;
+  for (const Vec3& vb : b.shape->vertices) {
+    const Vec3 yb = b.rotation * vb + b.position;
+    for (const Vec3& va : a.shape->vertices) difference.push_back(yb - (a.rotation * va + a.position));
+  }
+  const auto triangles = convex_hull_triangles(difference);
+  bool inside = true;
+  double nearest_plane = std::numeric_limits<double>::infinity();
+  double second_plane = std::numeric_limits<double>::infinity();
+  Vec3 nearest_normal = Vec3::Zero();
+  double distance = std::numeric_limits<double>::infinity();
+  Vec3 closest = Vec3::Zero();
+  std::vector<std::pair<double, Vec3>> planes;
+  for (const auto& t : triangles) {
+    const Vec3& p = difference[static_cast<std::size_t>(t[0])];
+    const Vec3& q = difference[static_cast<std::size_t>(t[1])];
+    const Vec3& r = difference[static_cast<std::size_t>(t[2])];
+    const Vec3 m = (q - p).cross(r - p).normalized();
+    const double offset = m.dot(p);  // outward plane m.x = offset
+    if (offset < 0.0) inside = false;
+    planes.emplace_back(offset, m);
+    const Vec3 c = closest_on_triangle(p, q, r);
+    if (c.norm() < distance) {
+      distance = c.norm();
+      closest = c;
+    }
+  }
+  Reference ref;
+  if (!inside) {
+    ref.gap = distance;
+    ref.normal = closest.normalized();
+    ref.unique = distance > 1e-6;
+    return ref;
+  }
+  for (const auto& [offset, m] : planes) {
+    if (offset < nearest_plane) {
+      nearest_plane = offset;
+      nearest_normal = m;
+    }
+  }
+  // Second-best plane with a clearly different normal (coplanar facets share the same plane).
+  for (const auto& [offset, m] : planes) {
+    if (m.dot(nearest_normal) < 1.0 - 1e-9) second_plane = std::min(second_plane, offset);
+  }
+  ref.gap = -nearest_plane;
+  ref.normal = -nearest_normal;
+  ref.unique = second_plane - nearest_plane > 1e-6;
+  return ref;
+}
+
+Quat random_rotation(std::mt19937_64& rng) {
+  std::normal_distribution<double> normal;
+  return Quat(normal(rng), normal(rng), normal(rng), normal(rng)).normalized();
+}
+
+Vec3 random_direction(std::mt19937_64& rng) {
+  std::normal_distribution<double> normal;
+  return Vec3(normal(rng), normal(rng), normal(rng)).normalized();
+}
+
+/// Checks `pairs` random pairs from a pool of random polyhedra (diameter d = 1) against the
+/// reference. Tolerances (d = 1): classification wherever |distance| > 1e-9; gap and normal
+/// 1e-6; f(normal) == gap to 1e-9 (the returned plane is the one whose separation is reported).
+void check_random_pairs(int pairs, int min_vertices, int max_vertices, std::uint64_t seed) {
+  RandomPolyhedronOptions options;
+  options.min_vertices = min_vertices;
+  options.max_vertices = max_vertices;
+  options.merge_angle_degrees = 0.0;  // the reference is the hull of the vertices
+  std::vector<ConvexPolyhedron> pool;
+  for (std::uint64_t k = 0; k < 64; ++k) pool.push_back(generate_random_polyhedron(options, seed + k));
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<std::size_t> pick(0, pool.size() - 1);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  int overlapping = 0, apart = 0, normals_compared = 0;
+  for (int k = 0; k < pairs; ++k) {
+    const PlacedPolyhedron a{&pool[pick(rng)], Vec3(uniform(rng), uniform(rng), uniform(rng)), random_rotation(rng).toRotationMatrix()};
+    const ConvexPolyhedron& shape_b = pool[pick(rng)];
+    // Centre distance uniform up to the sum of the bounding radii: about half the pairs overlap.
+    const double reach = a.shape->bounding_radius + shape_b.bounding_radius;
+    const PlacedPolyhedron b{&shape_b, a.position + uniform(rng) * reach * random_direction(rng),
+                             random_rotation(rng).toRotationMatrix()};
+    const Reference ref = minkowski_reference(a, b);
+    const CommonPlane plane = find_common_plane(a, b, nullptr, std::numeric_limits<double>::infinity());
+    ASSERT_TRUE(plane.complete);
+    if (std::abs(ref.gap) > 1e-9) {
+      ASSERT_EQ(plane.gap > 0.0, ref.gap > 0.0) << "pair " << k << " gap " << plane.gap << " reference " << ref.gap;
+    }
+    ASSERT_NEAR(plane.gap, ref.gap, 1e-6) << "pair " << k;
+    ASSERT_NEAR(plane_separation(a, b, plane.normal), plane.gap, 1e-9) << "pair " << k;
+    ASSERT_NEAR(plane.normal.norm(), 1.0, 1e-12);
+    if (ref.unique) {
+      ++normals_compared;
+      ASSERT_LT((plane.normal - ref.normal).norm(), 1e-6) << "pair " << k << " gap " << ref.gap;
+    }
+    (ref.gap > 0 ? apart : overlapping)++;
+
+    // Warm start from a perturbed normal and a finite cutoff: the same plane, or an early stop
+    // that is right about the pair being beyond the cutoff.
+    const Vec3 warm = (ref.normal + 0.05 * random_direction(rng)).normalized();
+    const double cutoff = 0.05;
+    const CommonPlane warmed = find_common_plane(a, b, &warm, cutoff);
+    if (!warmed.complete) {
+      ASSERT_GE(ref.gap, cutoff - 1e-9) << "pair " << k;
+      ASSERT_LE(warmed.gap, ref.gap + 1e-9);
+    } else {
+      ASSERT_NEAR(warmed.gap, ref.gap, 1e-6) << "pair " << k;
+    }
+  }
+  // Both outcomes are well represented.
+  EXPECT_GT(overlapping, pairs / 5);
+  EXPECT_GT(apart, pairs / 5);
+  EXPECT_GT(normals_compared, pairs / 2);
+}
+
+TEST(CommonPlane, TenThousandRandomPairsMatchTheMinkowskiReference) { check_random_pairs(10000, 10, 24, 1000); }
+
+TEST(CommonPlane, FullSizeRangePairsMatchTheMinkowskiReference) { check_random_pairs(600, 10, 70, 5000); }
+
+TEST(CommonPlane, TwoCubesFaceToFace) {
+  const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
+  const PlacedPolyhedron a{&cube, Vec3::Zero(), Mat3::Identity()};
+  const PlacedPolyhedron b{&cube, Vec3(0.2, -0.1, 1.03), Mat3::Identity()};
+  const CommonPlane plane = find_common_plane(a, b, nullptr, 1.0);
+  EXPECT_NEAR(plane.gap, 0.03, 1e-12);
+  EXPECT_NEAR((plane.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
+  const PlacedPolyhedron c{&cube, Vec3(0.2, -0.1, 0.98), Mat3::Identity()};
+  const CommonPlane overlap = find_common_plane(a, c, nullptr, 1.0);
+  EXPECT_NEAR(overlap.gap, -0.02, 1e-14);
+  EXPECT_NEAR((overlap.normal - Vec3::UnitZ()).norm(), 0.0, 1e-14);
+}
+
+TEST(CommonPlane, CrossedEdgesGiveTheEdgeCrossProduct) {
+  // Two cubes turned 45 degrees about x and about y: their edges meet crosswise.
+  const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
+  const double half_diagonal = std::sqrt(0.5);
+  const Mat3 ra = Eigen::AngleAxisd(M_PI / 4, Vec3::UnitX()).toRotationMatrix();
+  const Mat3 rb = Eigen::AngleAxisd(M_PI / 4, Vec3::UnitY()).toRotationMatrix();
+  const PlacedPolyhedron a{&cube, Vec3::Zero(), ra};
+  // Off the centre line, so the line of centres is not already the answer.
+  const PlacedPolyhedron b{&cube, Vec3(0.1, -0.05, 2 * half_diagonal - 0.01), rb};
+  const CommonPlane plane = find_common_plane(a, b, nullptr, 1.0);
+  EXPECT_EQ(plane.source, CommonPlaneSource::edge_edge);
+  EXPECT_NEAR(plane.gap, -0.01, 1e-12);
+  EXPECT_NEAR((plane.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
+}
+
+TEST(CommonPlane, WarmStartIsKeptWhenAsGoodAndStopsEarlyWhenFar) {
+  const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
+  const PlacedPolyhedron a{&cube, Vec3::Zero(), Mat3::Identity()};
+  const PlacedPolyhedron b{&cube, Vec3(0, 0, 0.999), Mat3::Identity()};
+  const Vec3 up = Vec3::UnitZ();
+  const CommonPlane plane = find_common_plane(a, b, &up, 0.01);
+  EXPECT_EQ(plane.source, CommonPlaneSource::warm_start);
+  EXPECT_NEAR(plane.gap, -0.001, 1e-14);
+  const PlacedPolyhedron far{&cube, Vec3(0, 0, 3), Mat3::Identity()};
+  const CommonPlane early = find_common_plane(a, far, &up, 0.01);
+  EXPECT_FALSE(early.complete);
+  EXPECT_NEAR(early.gap, 2.0, 1e-14);
+}
+
+TEST(ClosestPointOnPolyhedron, CornerEdgeFaceAndInside) {
+  const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
+  Vec3 closest;
+  ASSERT_TRUE(closest_point_on_polyhedron(cube, Vec3(1, 1, 1), closest));
+  EXPECT_NEAR((closest - Vec3(0.5, 0.5, 0.5)).norm(), 0.0, 1e-12);
+  ASSERT_TRUE(closest_point_on_polyhedron(cube, Vec3(1, 1, 0.2), closest));
+  EXPECT_NEAR((closest - Vec3(0.5, 0.5, 0.2)).norm(), 0.0, 1e-12);
+  ASSERT_TRUE(closest_point_on_polyhedron(cube, Vec3(0.1, 2, 0.2), closest));
+  EXPECT_NEAR((closest - Vec3(0.1, 0.5, 0.2)).norm(), 0.0, 1e-12);
+  EXPECT_FALSE(closest_point_on_polyhedron(cube, Vec3(0.1, 0.2, 0.3), closest));
+}
+
+}  // namespace
+}  // namespace rubble
