@@ -53,7 +53,7 @@ void direct_sum(const GravityOptions& options, std::span<const double> positions
   const auto n = static_cast<std::ptrdiff_t>(masses.size());
   const bool with_potential = !potential.empty();
   // Each target is independent and summed in a fixed order: any schedule gives the same bits.
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= 256)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto u = static_cast<std::size_t>(i);
     const detail::Accum acc = field_on(s, u, eps2);

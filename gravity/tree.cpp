@@ -35,6 +35,8 @@ constexpr double kCells = static_cast<double>(1u << kBitsPerAxis);
 // b_max is rounded up by a few ulps so that a node containing a target can never pass the
 // (strict) acceptance test through rounding, even with theta >= 1.
 constexpr double kBmaxSafety = 1.0 + 1e-12;
+// Below this many particles the OpenMP loops run on the calling thread only (same results).
+constexpr std::size_t kParallelMin = 2048;
 
 /// Stable LSD radix sort of (key, index) pairs on 8-bit digits. Stable + keys computed from the
 /// positions only => the order does not depend on anything but the input (determinism).
@@ -129,7 +131,8 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
   const double scale = extent > 0 ? kCells / extent : 0.0;
   std::vector<std::uint64_t> keys(n);
   const auto sn = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static)
+  // Threads only pay off beyond a few thousand particles (waking a team costs ~10 us or more).
+#pragma omp parallel for schedule(static) if (n >= kParallelMin)
   for (std::ptrdiff_t s = 0; s < sn; ++s) {
     const auto i = static_cast<std::size_t>(s);
     std::uint64_t key = 0;
@@ -195,6 +198,7 @@ double Tree::refit(std::span<const double> positions, std::span<const double> ma
                        std::to_string(masses.size()) + " vs " + std::to_string(order_.size()) + ")");
   load_particles(positions, masses);
   compute_moments();
+  collect_groups();  // same ranges, new boxes
   return seconds_since(t0);
 }
 
@@ -292,20 +296,57 @@ void Tree::compute_moments() {
 }
 
 void Tree::collect_groups() {
-  // Depth-first: the largest nodes holding at most group_size particles (or leaves) are groups.
+  // A node with at most group_size particles (or a leaf) is a group. The children of a larger
+  // node are packed: runs of consecutive small children (contiguous particle ranges) are merged
+  // while they hold at most group_size particles, so that groups stay close to group_size even
+  // where the octree splits into many small children (sparse regions, e.g. a Plummer halo).
   groups_.clear();
   if (nodes_.empty()) return;
-  std::vector<std::uint32_t> todo{0};
+  const auto gmax = static_cast<std::uint32_t>(group_size_);
+  auto add = [](const Node& nd, Group& g) {
+    if (g.count == 0) {
+      g.begin = nd.begin;
+      g.lo = nd.lo;
+      g.hi = nd.hi;
+    } else {
+      for (int d = 0; d < 3; ++d) {
+        g.lo[d] = std::min(g.lo[d], nd.lo[d]);
+        g.hi[d] = std::max(g.hi[d], nd.hi[d]);
+      }
+    }
+    g.count += nd.count;
+  };
+  std::vector<std::uint32_t> todo{0}, big;
   while (!todo.empty()) {
-    const std::uint32_t ni = todo.back();
+    const Node& nd = nodes_[todo.back()];
     todo.pop_back();
-    const Node& nd = nodes_[ni];
-    if (nd.first_child < 0 || nd.count <= static_cast<std::uint32_t>(group_size_)) {
-      groups_.push_back(ni);
+    if (nd.first_child < 0 || nd.count <= gmax) {
+      Group g;
+      add(nd, g);
+      groups_.push_back(g);
       continue;
     }
-    for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
-      todo.push_back(static_cast<std::uint32_t>(nd.first_child + c));
+    Group run;
+    big.clear();
+    for (std::int32_t c = 0; c < nd.num_children; ++c) {
+      const auto ci = static_cast<std::uint32_t>(nd.first_child + c);
+      const Node& ch = nodes_[ci];
+      if (ch.count > gmax) {  // walked on its own (recursively unless it is a leaf)
+        if (run.count > 0) groups_.push_back(run), run = Group{};
+        if (ch.first_child < 0) {
+          Group g;
+          add(ch, g);
+          groups_.push_back(g);
+        } else {
+          big.push_back(ci);
+        }
+        continue;
+      }
+      if (run.count > 0 && run.count + ch.count > gmax) groups_.push_back(run), run = Group{};
+      add(ch, run);
+    }
+    if (run.count > 0) groups_.push_back(run);
+    for (auto it = big.rbegin(); it != big.rend(); ++it) todo.push_back(*it);
   }
 }
 
@@ -346,7 +387,7 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   const bool with_potential = !potential.empty();
   std::uint64_t p2p_total = 0, m2p_total = 0;
 
-#pragma omp parallel reduction(+ : p2p_total, m2p_total)
+#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelMin)
   {
     GroupBuffers buf;
     auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
@@ -359,7 +400,7 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
     // them, so dynamic scheduling keeps results bit-identical for any thread count.
 #pragma omp for schedule(dynamic, 4)
     for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
-      const Node& g = nodes_[groups_[static_cast<std::size_t>(gi)]];
+      const Group& g = groups_[static_cast<std::size_t>(gi)];
       buf.clear();
       buf.stack.push_back(0);
       while (!buf.stack.empty()) {

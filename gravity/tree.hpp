@@ -84,7 +84,12 @@ class Tree {
   std::vector<double> x_, y_, z_, m_;      // particles in Morton order (SoA)
   std::vector<Node> nodes_;
   std::vector<std::array<double, 6>> second_moments_;  // Mxx Mxy Mxz Myy Myz Mzz per node
-  std::vector<std::uint32_t> groups_;      // node indices whose particles walk together
+  /// Targets that walk the tree together: a contiguous range of sorted particles and its box.
+  struct Group {
+    std::uint32_t begin = 0, count = 0;
+    std::array<double, 3> lo{}, hi{};
+  };
+  std::vector<Group> groups_;
   mutable Stats stats_;
 };
 
