@@ -2,7 +2,8 @@
 """Error vs time of the rubble gravity tree: one curve per multipole order, one panel per N.
 
 usage: plot.py results_uniform.csv docs/gravity-error-vs-time.png
-The CSV comes from bench_gravity --csv (bench/gravity/run.sh). One thread, tree build included;
+The CSV comes from bench_gravity --csv (bench/gravity/run.sh). One thread, tree build included,
+CPU seconds (the machine is shared: CPU time is the stable measure of the work);
 the error is the per-particle |a_tree - a_direct| / |a_direct| (median solid, p99 dashed).
 """
 import csv
@@ -27,7 +28,7 @@ def main(csv_path, png_path):
     for ax, n in zip(axes[0], sizes):
         for order, color, name in ((1, "tab:blue", "monopole"), (2, "tab:red", "quadrupole")):
             pts = sorted(
-                (float(r["seconds"]), float(r["median"]), float(r["p99"]), float(r["theta"]))
+                (float(r["cpu_seconds"]), float(r["median"]), float(r["p99"]), float(r["theta"]))
                 for r in rows
                 if int(r["n"]) == n and int(float(r["order"])) == order
             )
@@ -43,7 +44,7 @@ def main(csv_path, png_path):
                 ax.loglog([t], [med], m, color="k", label=label + " (median)")
                 ax.loglog([t], [p99], m, color="gray", label=label + " (p99)")
         ax.set_title(f"uniform sphere, N = {n:.0e}, 1 thread")
-        ax.set_xlabel("seconds per evaluation (build + walk)")
+        ax.set_xlabel("CPU seconds per evaluation (build + walk, 1 thread)")
         ax.set_ylabel("relative acceleration error")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6)

@@ -11,7 +11,7 @@ if [ -z "${BENCH_BIN:-}" ]; then
   BENCH_BIN="$BUILD/bench/gravity/bench_gravity"
 fi
 OUT="$ROOT/bench/gravity"
-echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc) cores; $(date)"
+echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc) cores; $(date); load: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo
 echo "## direct sum (best of 3)"
 "$BENCH_BIN" --direct-rate --n 10000,30000 --threads 1,2 --reps 3
@@ -23,4 +23,5 @@ echo
 echo "## tree, Plummer sphere (best of 3)"
 "$BENCH_BIN" --dist plummer --n 100000 --theta 0.3,0.5,0.7,1.0 --order 1,2 --threads 1 --reps 3 \
   --csv "$OUT/results_plummer.csv"
+echo "# load at the end: $(cut -d' ' -f1-3 /proc/loadavg)"
 /usr/bin/python3 "$OUT/plot.py" "$OUT/results_uniform.csv" "$ROOT/docs/gravity-error-vs-time.png"
