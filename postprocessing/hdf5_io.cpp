@@ -1,5 +1,6 @@
 #include "postprocessing/hdf5_io.hpp"
 
+#include <algorithm>
 #include <numeric>
 #include <stdexcept>
 
@@ -313,6 +314,26 @@ ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t 
   check(H5Pset_chunk(properties.get(), 1, chunk), file, "chunking of '" + name + "'");
   dataset_ = own(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
                  H5Dclose, file, "cannot create dataset '" + name + "'");
+}
+
+ExtendableColumn ExtendableColumn::open_truncated(hid_t parent, const std::string& name, hid_t type,
+                                                  hsize_t keep_rows, const std::filesystem::path& file) {
+  ExtendableColumn column;
+  column.type_ = type;
+  column.name_ = name;
+  column.dataset_ = own(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), H5Dclose, file, "missing dataset '" + name + "'");
+  Handle space = own(H5Dget_space(column.dataset_.get()), H5Sclose, file, "dataspace of '" + name + "'");
+  if (H5Sget_simple_extent_ndims(space.get()) != 1) {
+    throw std::runtime_error(file.string() + ": '" + name + "' is not a 1-D column");
+  }
+  hsize_t rows = 0;
+  check(H5Sget_simple_extent_dims(space.get(), &rows, nullptr), file, "dataspace of '" + name + "'");
+  column.size_ = std::min(rows, keep_rows);
+  if (column.size_ != rows) {
+    const hsize_t new_size[1] = {column.size_};
+    check(H5Dset_extent(column.dataset_.get(), new_size), file, "cannot truncate '" + name + "'");
+  }
+  return column;
 }
 
 void ExtendableColumn::append(const void* data, std::size_t count, const std::filesystem::path& file) {

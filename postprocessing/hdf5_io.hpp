@@ -150,10 +150,16 @@ class ExtendableColumn {
                    const std::filesystem::path& file);
   /// Appends `count` elements of the column's type read from `data`.
   void append(const void* data, std::size_t count, const std::filesystem::path& file);
+  /// Opens the existing column `name` of `parent` (made by the constructor above) and cuts it to
+  /// its first `keep_rows` rows (or keeps it whole if it is shorter); appends continue after
+  /// them. For resuming a run from a checkpoint (RunFile::reopen).
+  static ExtendableColumn open_truncated(hid_t parent, const std::string& name, hid_t type, hsize_t keep_rows,
+                                         const std::filesystem::path& file);
   /// Current length.
   hsize_t size() const { return size_; }
 
  private:
+  ExtendableColumn() = default;
   Handle dataset_;
   hid_t type_ = -1;
   hsize_t size_ = 0;

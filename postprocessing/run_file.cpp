@@ -1,5 +1,6 @@
 #include "postprocessing/run_file.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -247,6 +248,88 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   impl->snapshots_group = hdf5::create_group(root, "snapshots", path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));
+}
+
+RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<const std::string_view> stage_names) {
+  const hdf5::QuietErrors quiet;
+  if (!fs::exists(path)) throw std::runtime_error(path.string() + ": no such run file");
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->file = hdf5::own(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose, path,
+                         "cannot open the run file for writing");
+  const hid_t root = impl->file.get();
+  if (H5Aexists(root, "format") <= 0 || hdf5::read_string_attribute(root, "format", path) != run_file_format) {
+    throw std::runtime_error(path.string() + ": not a rubble run file (no /@format = rubble-run)");
+  }
+  if (hdf5::read_double_attribute(root, "format_version", path) != run_file_format_version) {
+    throw std::runtime_error(path.string() + ": run file layout version differs from this rubble's");
+  }
+  Handle model = hdf5::open_group(root, "model", path);
+  impl->body_count = static_cast<std::size_t>(hdf5::read_double_attribute(model.get(), "body_count", path));
+
+  // Steps are appended in increasing order: keep the leading rows up to last_step.
+  impl->series_group = hdf5::open_group(root, "series", path);
+  const hid_t series = impl->series_group.get();
+  const hdf5::Array<std::int64_t> steps = hdf5::read_int64s(series, "step", path);
+  const auto keep = static_cast<hsize_t>(
+      std::find_if(steps.values.begin(), steps.values.end(), [&](std::int64_t s) { return s > last_step; }) -
+      steps.values.begin());
+  const std::array<std::pair<const char*, hid_t>, 8> columns{{{"step", H5T_NATIVE_INT64},
+                                                              {"time", H5T_NATIVE_DOUBLE},
+                                                              {"kinetic_energy", H5T_NATIVE_DOUBLE},
+                                                              {"contacts", H5T_NATIVE_INT64},
+                                                              {"active_contacts", H5T_NATIVE_INT64},
+                                                              {"iterations", H5T_NATIVE_INT},
+                                                              {"residual", H5T_NATIVE_DOUBLE},
+                                                              {"wall_seconds", H5T_NATIVE_DOUBLE}}};
+  for (const auto& [name, type] : columns) {
+    impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, name, type, keep, path));
+  }
+  impl->stage_group = hdf5::open_group(series, "stage_seconds", path);
+  for (std::string_view name : stage_names) {
+    impl->stage_names.emplace_back(name);
+    impl->stage_columns.push_back(hdf5::ExtendableColumn::open_truncated(impl->stage_group.get(), std::string(name),
+                                                                         H5T_NATIVE_DOUBLE, keep, path));
+  }
+  impl->stage_seconds.resize(stage_names.size());
+  impl->rows = static_cast<std::int64_t>(keep);
+
+  // Snapshots are numbered in the order written, and steps grow with the number: drop the tail
+  // written after last_step.
+  impl->snapshots_group = hdf5::open_group(root, "snapshots", path);
+  const hid_t snapshots = impl->snapshots_group.get();
+  for (const std::string& name : hdf5::link_names(snapshots, path)) {
+    Handle group = hdf5::open_group(snapshots, name, path);
+    const double step = hdf5::read_double_attribute(group.get(), "step", path);
+    group.reset();
+    if (step > static_cast<double>(last_step)) {
+      hdf5::check(H5Ldelete(snapshots, name.c_str(), H5P_DEFAULT), path, "cannot remove snapshot " + name);
+      continue;
+    }
+    std::array<char, 16> expected{};
+    std::snprintf(expected.data(), expected.size(), "%06lld", static_cast<long long>(impl->snapshots));
+    if (name != expected.data()) {
+      throw std::runtime_error(path.string() + ": snapshot " + name + " out of sequence (expected " +
+                               expected.data() + ")");
+    }
+    ++impl->snapshots;
+  }
+  hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
+  return RunFile(std::move(impl));
+}
+
+void RunFile::hold_metadata_until_flush() {
+  Impl& f = *impl_;
+  const hdf5::QuietErrors quiet;
+  H5AC_cache_config_t config{};
+  config.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  hdf5::check(H5Fget_mdc_config(f.file.get(), &config), f.path, "cannot read the metadata cache settings");
+  // HDF5 allows turning evictions off only with automatic resizing off (H5Pset_mdc_config).
+  config.evictions_enabled = false;
+  config.incr_mode = H5C_incr__off;
+  config.flash_incr_mode = H5C_flash_incr__off;
+  config.decr_mode = H5C_decr__off;
+  hdf5::check(H5Fset_mdc_config(f.file.get(), &config), f.path, "cannot set the metadata cache settings");
 }
 
 void RunFile::append_series(const SeriesRow& row) {

@@ -48,6 +48,14 @@ class RunFile {
   static RunFile create(const std::filesystem::path& path, const Model& model, std::string_view scene_text,
                         std::span<const std::string_view> stage_names);
 
+  /// Opens an existing run file to resume a run from a checkpoint taken at step `last_step`:
+  /// series rows and snapshots of later steps (written after that checkpoint by the run that
+  /// stopped) are removed, so that the resumed run appends with no step written twice or missing.
+  /// `stage_names` must be the names the file was created with. Throws std::runtime_error naming
+  /// the file if it cannot be opened or is not a run file. (simulation/checkpoint.hpp)
+  static RunFile reopen(const std::filesystem::path& path, std::int64_t last_step,
+                        std::span<const std::string_view> stage_names);
+
   RunFile(RunFile&&) noexcept;             ///< takes over the open file
   RunFile& operator=(RunFile&&) noexcept;  ///< closes this file (flushing it), takes over the other
   RunFile(const RunFile&) = delete;
@@ -62,6 +70,12 @@ class RunFile {
   void write_snapshot(const State& state, const ContactList& contacts);
   /// Writes the buffered series rows and flushes HDF5's buffers to disk.
   void flush();
+  /// From now on HDF5 writes the file's metadata only in flush() (and on close): its metadata
+  /// cache stops evicting dirty entries in between. A process killed between two flushes then
+  /// leaves a file whose metadata is that of the last flush, which reopen() can cut back to a
+  /// checkpoint. Costs memory for the metadata touched between flushes (small: a few groups and
+  /// index nodes). Used by the run loop, which flushes at every checkpoint.
+  void hold_metadata_until_flush();
 
   /// The file's path.
   const std::filesystem::path& path() const;

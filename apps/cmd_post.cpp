@@ -1,0 +1,127 @@
+// `rubble post RUN.h5 [-o DIR] [--vtk] [--every N] [--no-plots]`: metrics of every snapshot (CSV and
+// HDF5), the per-step series as CSV, ParaView files on request, PNG plots.
+// `rubble post --study DIR_OR_RUN... [-o DIR] [--stable-after S]`: the study's comparison plots.
+// Every file written is listed in docs/postprocessing.md.
+#include <iostream>
+#include <memory>
+
+#include "apps/commands.hpp"
+#include "postprocessing/post.hpp"
+#include "postprocessing/run_reader.hpp"
+#include "simulation/scene_file.hpp"
+
+namespace rubble::apps {
+namespace {
+
+struct PostArguments {
+  std::string run_file;
+  std::vector<std::string> study;
+  std::string output_directory;
+  bool vtk = false;
+  bool no_plots = false;
+  bool quiet = false;
+  int every = 1;
+  int bins = 20;
+  double stable_after = 7500.0;
+};
+
+/// The run's gravity and time step, from the scene stored in the run file. A scene this rubble
+/// cannot parse leaves the potential energy at 0 (with a warning) and h to the series.
+void settings_from_scene(const RunReader& reader, PostOptions& options, std::ostream& warnings) {
+  try {
+    const Scene scene = parse_scene(reader.scene_text(), reader.path().string() + ":/scene");
+    const GravitySettings& gravity = scene.run.step.gravity;
+    switch (gravity.kind) {
+      case GravitySettings::Kind::none:
+        options.potential.kind = PotentialSettings::Kind::none;
+        break;
+      case GravitySettings::Kind::uniform:
+        options.potential.kind = PotentialSettings::Kind::uniform;
+        options.potential.acceleration = gravity.acceleration;
+        break;
+      case GravitySettings::Kind::self:
+        options.potential.kind = PotentialSettings::Kind::self;
+        options.potential.gravitational_constant = gravity.self_gravity.G;
+        options.potential.softening = gravity.self_gravity.softening.kind == gravity::Softening::Kind::plummer
+                                          ? gravity.self_gravity.softening.length
+                                          : 0.0;
+        break;
+    }
+    options.time_step = scene.run.step.integrator.time_step;
+  } catch (const std::exception& e) {
+    warnings << "rubble post: warning: the run's scene could not be read (" << e.what()
+             << "); potential energy left at 0, time step estimated from the series\n";
+  }
+}
+
+int post_command(const PostArguments& args) {
+  std::ostream* log = args.quiet ? nullptr : &std::cout;
+  try {
+    if (!args.study.empty()) {
+      StudyOptions options;
+      options.output_directory = args.output_directory.empty() ? "rubble-study" : args.output_directory;
+      options.stable_after = args.stable_after;
+      options.plots = !args.no_plots;
+      options.log = log;
+      std::vector<std::filesystem::path> inputs(args.study.begin(), args.study.end());
+      const auto written = post_process_study(inputs, options);
+      if (log != nullptr) {
+        for (const auto& path : written) *log << "  " << path.string() << "\n";
+      }
+      return exit_ok;
+    }
+    const std::filesystem::path run(args.run_file);
+    PostOptions options;
+    {
+      const RunReader reader = RunReader::open(run);
+      settings_from_scene(reader, options, std::cerr);
+    }
+    options.output_directory = args.output_directory.empty() ? run.parent_path() / (run.stem().string() + "-post")
+                                                             : std::filesystem::path(args.output_directory);
+    options.every = args.every;
+    options.write_vtk = args.vtk;
+    options.plots = !args.no_plots;
+    options.histogram_bins = args.bins;
+    options.log = log;
+    post_process_run(run, options);
+  } catch (const std::exception& e) {
+    std::cerr << "rubble post: error: " << e.what() << "\n";
+    return exit_bad_input;
+  }
+  return exit_ok;
+}
+
+}  // namespace
+
+void register_post_command(CLI::App& app) {
+  auto args = std::make_shared<PostArguments>();
+  CLI::App* post = app.add_subcommand("post", "Metrics, plots and ParaView files of a run (docs/postprocessing.md)");
+  auto* run = post->add_option("run", args->run_file, "Run file (HDF5) written by `rubble run`");
+  auto* study = post->add_option("--study", args->study,
+                                 "Gather these run files, or folders searched for run files, into the study's plots");
+  run->excludes(study);
+  post->add_option("-o,--out", args->output_directory,
+                   "Output folder (default: RUN-post beside the run file; rubble-study for --study)");
+  post->add_flag("--vtk", args->vtk, "Also write the ParaView series (OUT/vtk/*.pvd)");
+  post->add_option("--every", args->every, "Use every N-th snapshot (the last one always)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  post->add_option("--bins", args->bins, "Bins of the normal impulse distribution")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  post->add_option("--stable-after", args->stable_after,
+                   "With --study: average over snapshots at t >= this (s; the paper's 125 min)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  post->add_flag("--no-plots", args->no_plots, "Do not draw the PNGs");
+  post->add_flag("-q,--quiet", args->quiet, "Do not list progress and files");
+  post->callback([args] {
+    if (args->run_file.empty() && args->study.empty()) {
+      throw CLI::ValidationError("rubble post", "give a run file, or --study with run files or folders");
+    }
+    const int code = post_command(*args);
+    if (code != exit_ok) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace rubble::apps

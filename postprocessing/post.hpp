@@ -1,0 +1,49 @@
+#pragma once
+// `rubble post`: from a run file to metrics (CSV + HDF5), ParaView files and PNG plots, and from
+// several runs to the study's comparison plots (seed 001 figures 3-4). Every file written is listed
+// in docs/postprocessing.md.
+#include <filesystem>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "postprocessing/metrics.hpp"
+
+namespace rubble {
+
+/// What post_process_run does.
+struct PostOptions {
+  std::filesystem::path output_directory;  ///< where everything goes (created if missing)
+  PotentialSettings potential{};           ///< the run's gravity, for the potential energy
+  double time_step = 0.0;                  ///< h for forces = impulse / h (0: estimated from the series)
+  int every = 1;                           ///< use every n-th snapshot (>= 1); the last one always
+  bool write_vtk = false;                  ///< also write the ParaView series into OUT/vtk/
+  bool plots = true;                       ///< draw the PNGs with plots.py
+  int histogram_bins = 20;                 ///< bins of the normal impulse distribution
+  std::ostream* log = nullptr;             ///< progress and the list of files written (nullptr: silent)
+};
+
+/// Post-processes one run file; returns the files written. Throws std::runtime_error naming the
+/// file on any read/write problem, or when the plotting script fails.
+std::vector<std::filesystem::path> post_process_run(const std::filesystem::path& run_file, const PostOptions& options);
+
+/// What post_process_study does.
+struct StudyOptions {
+  std::filesystem::path output_directory;  ///< where study.csv and the PNGs go
+  /// s: snapshots at or after this time form the stabilised regime averaged over (the paper's
+  /// t > 125 min). A run with no snapshot that late uses its last quarter of snapshots instead.
+  double stable_after = 7500.0;
+  bool plots = true;             ///< draw the PNGs with plots.py
+  std::ostream* log = nullptr;   ///< progress (nullptr: silent)
+};
+
+/// Gathers run files (each argument a run file, or a folder searched recursively for *.h5 run
+/// files) into study.csv and the comparison plots; returns the files written. Throws
+/// std::runtime_error when no run file is found.
+std::vector<std::filesystem::path> post_process_study(const std::vector<std::filesystem::path>& inputs,
+                                                      const StudyOptions& options);
+
+/// Path of postprocessing/plots.py: $RUBBLE_PLOTS_SCRIPT if set, else the source tree's copy.
+std::filesystem::path plots_script();
+
+}  // namespace rubble

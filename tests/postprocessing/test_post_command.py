@@ -1,0 +1,137 @@
+#!/usr/bin/python3
+"""End-to-end test of `rubble post` on a short run (a CTest test).
+
+Usage: test_post_command.py RUBBLE SCENE POSTPROCESSING.md OUTPUT-FORMAT.md CHECK_RUN_FILE.py WORKDIR
+
+1. `rubble run SCENE` (27 spheres falling into a box, 0.4 s) writes WORKDIR/run/run.h5; its layout
+   is checked against docs/output-format.md (check_run_file.py in layout-only mode).
+2. `rubble post RUN --vtk` must write every file that docs/postprocessing.md lists for it; PNGs are
+   PNGs, metrics.csv has exactly the documented columns and one row per snapshot, metrics.h5 holds
+   the same numbers, the energy balance is sane (total energy never grows under uniform gravity
+   with dissipative contacts, to 1e-6 relative).
+3. `rubble post --study` on two copies of the run writes every study file the document lists.
+4. Bad input: a missing run file exits with code 2 and names the file.
+Prints 'N passed, N failed' and exits non-zero on any failure.
+"""
+import csv
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+passed, failed = 0, 0
+
+
+def check(condition, message):
+    global passed, failed
+    if condition:
+        passed += 1
+    else:
+        failed += 1
+        print("FAILED:", message)
+
+
+def documented_files(doc, section_title):
+    """File names in the first column of the tables under a '## ' section."""
+    names, inside = [], False
+    for line in doc.splitlines():
+        if line.startswith("## "):
+            inside = line.strip() == section_title
+            continue
+        match = re.match(r"^\| `([\w./-]+)` \|", line)
+        if inside and match:
+            names.append(match.group(1))
+    return names
+
+
+def run(command, **kwargs):
+    print("$", " ".join(command), flush=True)
+    return subprocess.run(command, capture_output=True, text=True, **kwargs)
+
+
+def main():
+    rubble, scene, post_doc_path, format_doc, checker, work = sys.argv[1:7]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    with open(post_doc_path, encoding="utf-8") as f:
+        post_doc = f.read()
+
+    result = run([rubble, "run", scene, "-o", os.path.join(work, "run"), "-q"])
+    check(result.returncode == 0, f"rubble run failed: {result.stderr}")
+    run_file = os.path.join(work, "run", "run.h5")
+    result = run(["/usr/bin/python3", checker, run_file, "-", format_doc])
+    print(result.stdout, end="")
+    check(result.returncode == 0, "the run file of `rubble run` does not match docs/output-format.md")
+
+    with h5py.File(run_file, "r") as h5:
+        kinds = set(int(k) for k in h5["/model/body_shape_kind"][()])
+    not_applicable = set()  # ParaView files the model has no use for (documented as such)
+    if 0 not in kinds:
+        not_applicable.add("vtk/spheres.pvd")
+    if 1 not in kinds:
+        not_applicable.add("vtk/polyhedra.pvd")
+    if not kinds & {2, 3}:
+        not_applicable.add("vtk/walls.pvd")
+
+    out = os.path.join(work, "post")
+    result = run([rubble, "post", run_file, "--vtk", "-o", out])
+    check(result.returncode == 0, f"rubble post failed: {result.stdout} {result.stderr}")
+    names = documented_files(post_doc, "## Files written by `rubble post RUN.h5`")
+    check(len(names) >= 13, f"only {len(names)} files documented for rubble post")
+    for name in names:
+        path = os.path.join(out, name)
+        if name in not_applicable:
+            check(not os.path.exists(path), f"{path} written for a model without such bodies")
+            continue
+        check(os.path.isfile(path) and os.path.getsize(path) > 0, f"{path} missing or empty")
+        if name.endswith(".png") and os.path.isfile(path):
+            with open(path, "rb") as f:
+                check(f.read(8) == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG")
+
+    with h5py.File(run_file, "r") as h5:
+        snapshots = len(h5["/snapshots"])
+        grains = int(h5["/model"].attrs["grain_count"])
+    with open(os.path.join(out, "metrics.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    columns = documented_files(post_doc, "## `metrics.csv` columns")
+    check(rows and list(rows[0].keys()) == columns, "metrics.csv columns differ from docs/postprocessing.md")
+    check(len(rows) == snapshots, f"metrics.csv has {len(rows)} rows for {snapshots} snapshots")
+    check(all(int(float(r["grains"])) == grains for r in rows), "grain count")
+    total = np.array([float(r["total_energy"]) for r in rows])
+    check(np.all(np.diff(total) <= 1e-6 * np.abs(total).max()), f"total energy grows: {total}")
+    check(max(float(r["coordination"]) for r in rows) > 0, "no contact ever in the deposit")
+    with h5py.File(os.path.join(out, "metrics.h5"), "r") as h5:
+        check(h5.attrs["format"] == "rubble-metrics", "metrics.h5 format attribute")
+        for column in columns:
+            values = h5["/metrics/" + column][()]
+            check(np.array_equal(values, [float(r[column]) for r in rows]), f"metrics.h5 {column} differs from the CSV")
+
+    study_runs = os.path.join(work, "study-runs")
+    for k in (1, 2):
+        os.makedirs(os.path.join(study_runs, f"run{k}"))
+        shutil.copy(run_file, os.path.join(study_runs, f"run{k}", "run.h5"))
+    shutil.copy(os.path.join(out, "metrics.h5"), os.path.join(study_runs, "run1"))  # not a run file: skipped
+    study_out = os.path.join(work, "study")
+    result = run([rubble, "post", "--study", study_runs, "-o", study_out, "-q"])
+    check(result.returncode == 0, f"rubble post --study failed: {result.stdout} {result.stderr}")
+    for name in documented_files(post_doc, "## Files written by `rubble post --study`"):
+        path = os.path.join(study_out, name)
+        check(os.path.isfile(path) and os.path.getsize(path) > 0, f"{path} missing or empty")
+    with open(os.path.join(study_out, "study.csv"), newline="") as f:
+        study = list(csv.DictReader(f))
+    check(len(study) == 2 and all(int(float(r["grains"])) == grains for r in study), "study.csv rows")
+
+    missing = os.path.join(work, "no-such-run.h5")
+    result = run([rubble, "post", missing, "-q"])
+    check(result.returncode == 2 and missing in result.stderr, f"missing file: code {result.returncode}, {result.stderr}")
+
+    print(f"{passed} passed, {failed} failed")
+    return 0 if failed == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
