@@ -28,16 +28,12 @@ bool overlap(const Aabb& a, const Aabb& b) {
   return (a.lower.array() <= b.upper.array()).all() && (b.lower.array() <= a.upper.array()).all();
 }
 
-/// Box of a wall, or an unbounded box for planes (always tested).
+/// World box of a box wall, inflated by the margin.
 Aabb wall_box(const Model& model, const State& state, std::size_t wall, double margin) {
-  if (model.shape_kind[wall] == ShapeKind::box) {
-    const Box& box = model.boxes[static_cast<std::size_t>(model.shape_index[wall])];
-    // Extent of a rotated box along each world axis: sum_j |R_ij| h_j.
-    const Vec3 extent = state.orientation[wall].toRotationMatrix().cwiseAbs() * box.half_extents;
-    return {state.position[wall] - extent - Vec3::Constant(margin), state.position[wall] + extent + Vec3::Constant(margin)};
-  }
-  const double inf = std::numeric_limits<double>::infinity();
-  return {Vec3::Constant(-inf), Vec3::Constant(inf)};
+  const Box& box = model.boxes[static_cast<std::size_t>(model.shape_index[wall])];
+  // Extent of a rotated box along each world axis: sum_j |R_ij| h_j.
+  const Vec3 extent = state.orientation[wall].toRotationMatrix().cwiseAbs() * box.half_extents;
+  return {state.position[wall] - extent - Vec3::Constant(margin), state.position[wall] + extent + Vec3::Constant(margin)};
 }
 
 }  // namespace
@@ -74,12 +70,14 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
 
   std::vector<BodyPair> pairs;
   if (!grains.empty()) {
-    // Cell size: twice the median bounding radius (plus the alert distance), so a typical grain
-    // spans at most 2 cells per axis; larger grains span more cells but stay few for bounded
-    // size ratios. The domain is capped to 2^20 cells per axis by growing the cell if needed.
+    // Cell size: the 90th-percentile bounding diameter plus the alert distance, so most grains
+    // span at most 2 cells per axis (at most 8 entries) while a few large grains (a 10:1 size
+    // ratio) span more cells instead of making every cell large. The domain is capped to 2^20
+    // cells per axis by growing the cell if needed.
     std::vector<double> radii(grains.size());
     for (std::size_t k = 0; k < grains.size(); ++k) radii[k] = model.bounding_radius[grains[k]];
-    std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2), radii.end());
+    const std::size_t percentile = std::min(radii.size() - 1, radii.size() * 9 / 10);
+    std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(percentile), radii.end());
     Vec3 lower = Vec3::Constant(std::numeric_limits<double>::infinity());
     Vec3 upper = -lower;
     for (const Aabb& box : boxes) {
@@ -87,7 +85,7 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
       upper = upper.cwiseMax(box.upper);
     }
     constexpr double max_cells = 1 << 20;
-    double cell = 2.0 * radii[radii.size() / 2] + alert_distance;
+    double cell = 2.0 * radii[percentile] + alert_distance;
     cell = std::max(cell, (upper - lower).maxCoeff() / max_cells);
     if (!(cell > 0.0) || !std::isfinite(cell)) throw std::runtime_error("broad phase: non-finite grain positions");
 
@@ -148,6 +146,15 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
   }
 
   for (const std::uint32_t wall : walls) {
+    if (model.shape_kind[wall] == ShapeKind::plane) {
+      // Half-space test: only grains whose bounding sphere comes within the alert distance.
+      const Vec3 normal = state.orientation[wall] * model.planes[static_cast<std::size_t>(model.shape_index[wall])].normal;
+      for (const std::uint32_t grain : grains) {
+        const double gap = normal.dot(state.position[grain] - state.position[wall]) - model.bounding_radius[grain];
+        if (gap < alert_distance) pairs.push_back({std::min(wall, grain), std::max(wall, grain)});
+      }
+      continue;
+    }
     const Aabb box = wall_box(model, state, wall, margin);
     for (std::size_t k = 0; k < grains.size(); ++k) {
       if (overlap(box, boxes[k])) pairs.push_back({std::min(wall, grains[k]), std::max(wall, grains[k])});
