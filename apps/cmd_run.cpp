@@ -1,66 +1,181 @@
-// `rubble run`: runs a scene file (or the built-in default) and writes DIR/run.h5.
+// `rubble run`: runs a scene file (or the built-in default) and writes DIR/run.h5, with
+// checkpoints in DIR/checkpoints; `rubble run --resume DIR` goes on from the newest valid
+// checkpoint (docs/checkpoints.md).
+//
+// Signals: while a run is stepping, SIGINT and SIGTERM only store their number in `stop_signal`
+// (the one piece of global mutable state of the program: a signal handler can reach nothing
+// else, and a lock-free atomic store is async-signal-safe). The run loop reads it after each
+// step, writes a checkpoint and returns; the command then exits with 128 + the signal's number,
+// as a shell reports a process stopped by that signal. The handlers are installed with
+// SA_RESETHAND: a second Ctrl-C during the final checkpoint kills at once (the checkpoint being
+// written is a temporary file, so the previous ones stay valid).
+#include <signal.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 
 #include "apps/commands.hpp"
+#include "simulation/checkpoint.hpp"
 #include "simulation/run.hpp"
 #include "simulation/scene_file.hpp"
 
 namespace rubble::apps {
 namespace {
 
+/// The signal that asked the run to stop (0: none). See the file comment.
+std::atomic<int> stop_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal flag must be lock-free to be set in a handler");
+
+extern "C" void request_stop(int signal_number) { stop_signal.store(signal_number, std::memory_order_relaxed); }
+
+/// Installs the stop handlers for SIGINT and SIGTERM while alive; restores the previous ones.
+class StopOnSignals {
+ public:
+  StopOnSignals() {
+    stop_signal.store(0);
+    struct sigaction action {};
+    action.sa_handler = request_stop;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESETHAND;
+    sigaction(SIGINT, &action, &previous_int_);
+    sigaction(SIGTERM, &action, &previous_term_);
+  }
+  ~StopOnSignals() {
+    sigaction(SIGINT, &previous_int_, nullptr);
+    sigaction(SIGTERM, &previous_term_, nullptr);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  struct sigaction previous_int_ {};
+  struct sigaction previous_term_ {};
+};
+
 struct RunArguments {
   std::string scene_path;
   std::string output_directory;
+  std::string resume_directory;
   double end_time = 0.0;
+  std::int64_t checkpoint_every = 0;
+  double checkpoint_minutes = 10.0;
+  double max_speed = 0.0;
+  bool no_runaway_check = false;
   bool print_default = false;
   bool quiet = false;
 };
 
+int bad_input(const std::string& message) {
+  std::cerr << "rubble run: error: " << message << "\n";
+  return exit_bad_input;
+}
+
+std::string signal_name(int signal_number) {
+  if (signal_number == SIGINT) return "SIGINT";
+  if (signal_number == SIGTERM) return "SIGTERM";
+  return fmt::format("signal {}", signal_number);
+}
+
 int run_command(const RunArguments& args) {
   Scene scene;
-  std::string scene_text;
+  RunControl control;
+  LoadedCheckpoint loaded;
+  const bool resuming = !args.resume_directory.empty();
   try {
-    if (args.scene_path.empty()) {
-      scene_text = default_scene_toml();
-      scene = parse_scene(scene_text, "<built-in default scene>");
+    if (resuming) {
+      if (!args.scene_path.empty()) return bad_input("give a scene file or --resume DIR, not both");
+      if (!args.output_directory.empty()) {
+        return bad_input("--out cannot be used with --resume (the run goes on in the folder it resumes)");
+      }
+      if (!std::filesystem::is_directory(args.resume_directory)) {
+        return bad_input(args.resume_directory + ": no such run folder to resume");
+      }
+      loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+      for (const std::string& reason : loaded.rejected) std::cerr << "rubble run: warning: skipped " << reason << "\n";
+      const Checkpoint& checkpoint = loaded.checkpoint;
+      control.scene_text = checkpoint.scene_text;
+      control.scene_source = checkpoint.scene_source;
+      scene = parse_scene(control.scene_text, control.scene_source);
+      scene.run.output.directory = args.resume_directory;
+      scene.run.end_time = args.end_time > 0.0 ? args.end_time : checkpoint.end_time;
+      if (scene.run.end_time < checkpoint.state.time - 0.5 * scene.run.step.integrator.time_step) {
+        return bad_input(fmt::format("--end-time {} s is before the checkpoint's time {} s", scene.run.end_time,
+                                     checkpoint.state.time));
+      }
+      control.resume = &loaded.checkpoint;
+    } else if (args.scene_path.empty()) {
+      control.scene_text = default_scene_toml();
+      control.scene_source = "<built-in default scene>";
+      scene = parse_scene(control.scene_text, control.scene_source);
     } else {
       std::ifstream in(args.scene_path);
-      if (!in) {
-        std::cerr << "rubble run: error: " << args.scene_path << ": cannot open the scene file\n";
-        return exit_bad_input;
-      }
+      if (!in) return bad_input(args.scene_path + ": cannot open the scene file");
       std::stringstream buffer;
       buffer << in.rdbuf();
-      scene_text = buffer.str();
+      control.scene_text = buffer.str();
       scene = load_scene_file(args.scene_path);
+      // Absolute, so that a resumed run anchors the scene's relative paths the same way.
+      control.scene_source = std::filesystem::absolute(args.scene_path).string();
     }
   } catch (const SceneError& e) {
-    std::cerr << "rubble run: error: " << e.what() << "\n";
-    return exit_bad_input;
+    return bad_input(e.what());
+  } catch (const CheckpointError& e) {
+    return bad_input(std::string("cannot resume: ") + e.what());
   }
-  if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
-  if (args.end_time > 0.0) scene.run.end_time = args.end_time;
+  if (!resuming) {
+    if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
+    if (args.end_time > 0.0) scene.run.end_time = args.end_time;
+  }
+  control.checkpoint_every_steps = args.checkpoint_every;
+  control.checkpoint_interval = 60.0 * args.checkpoint_minutes;
+  control.max_speed = args.no_runaway_check ? -1.0 : args.max_speed;
+  control.stop_requested = &stop_signal;
 
   std::ostream* progress = args.quiet ? nullptr : &std::cout;
+  control.progress = progress;
   if (progress) {
     *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
               << scene.run.step.integrator.time_step << " s, until t = " << scene.run.end_time << " s\n";
+    if (resuming) {
+      *progress << "rubble run: resuming from " << loaded.file.string() << " (step " << loaded.checkpoint.state.step
+                << ", t = " << loaded.checkpoint.state.time << " s)\n";
+    }
   }
   try {
-    const RunSummary summary = run_scene(scene, RunControl{progress, scene_text});
-    std::cout << "rubble run: done: " << summary.steps << " steps, t = " << summary.simulated_time << " s in "
-              << summary.wall_seconds << " s wall (" << summary.steps / std::max(summary.wall_seconds, 1e-9)
-              << " steps/s), mean NLGS iterations " << summary.mean_iterations << ", max residual "
-              << summary.max_residual << ", " << summary.unconverged_steps << " steps at the iteration cap\n"
+    const StopOnSignals handlers;
+    const RunSummary summary = run_scene(scene, control);
+    if (summary.interrupted) {
+      const int signal_number = stop_signal.load();
+      std::cout << "rubble run: stopped by " << signal_name(signal_number) << " at step " << summary.final_step
+                << " (t = " << summary.simulated_time << " s); checkpoint written: " << summary.last_checkpoint.string()
+                << "\n  go on with: rubble run --resume " << scene.run.output.directory << "\n";
+      return 128 + signal_number;
+    }
+    std::cout << "rubble run: done: " << summary.steps << " steps"
+              << (summary.first_step > 0 ? fmt::format(" (resumed at step {})", summary.first_step) : std::string())
+              << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
+              << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
+              << summary.mean_iterations << ", max residual " << summary.max_residual << ", "
+              << summary.unconverged_steps << " steps at the iteration cap\n"
               << "  output: " << summary.run_file.string() << " (" << summary.snapshots
               << " snapshots; layout in docs/output-format.md)\n"
+              << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)
+              << ", checkpoint " << summary.last_checkpoint.string() << "\n"
               << "  look at it: rubble post " << summary.run_file.string()
               << " --vtk, then open the .pvd in ParaView, or h5py.File('" << summary.run_file.string() << "')\n";
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;
+  } catch (const CheckpointError& e) {
+    return bad_input(std::string("cannot resume: ") + e.what());
+  } catch (const std::runtime_error& e) {
+    std::cerr << "rubble run: error: " << e.what() << "\n";
+    return exit_failure;
   }
   return exit_ok;
 }
@@ -70,9 +185,36 @@ int run_command(const RunArguments& args) {
 void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArguments>();
   CLI::App* run = app.add_subcommand("run", "Run a scene file (without SCENE: the built-in default scene)");
+  const auto finite = CLI::Validator(
+      [](const std::string& text) {
+        // CLI11 reads "nan" and "inf" as numbers; an option value must be an actual finite number.
+        try {
+          std::size_t used = 0;
+          const double value = std::stod(text, &used);
+          if (used != text.size() || !std::isfinite(value)) return std::string("expected a finite number, got " + text);
+        } catch (const std::exception&) {
+          return std::string("expected a number, got " + text);
+        }
+        return std::string();
+      },
+      "FINITE");
   run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
-  run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")->check(CLI::PositiveNumber);
+  run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
+      ->check(finite & CLI::PositiveNumber);
+  run->add_option("--resume", args->resume_directory,
+                  "Go on with the run in DIR from its newest valid checkpoint (DIR/checkpoints)")
+      ->type_name("DIR");
+  run->add_option("--checkpoint-every", args->checkpoint_every, "Write a checkpoint every N steps (default 0: off)")
+      ->check(CLI::NonNegativeNumber);
+  run->add_option("--checkpoint-minutes", args->checkpoint_minutes,
+                  "Write a checkpoint every T minutes of wall time (default 10; 0: off)")
+      ->check(finite & CLI::NonNegativeNumber);
+  run->add_option("--max-speed", args->max_speed,
+                  "Stop when a grain is faster than V m/s (default: when a grain moves more than its own radius "
+                  "in one step)")
+      ->check(finite & CLI::PositiveNumber);
+  run->add_flag("--no-runaway-check", args->no_runaway_check, "Only stop on non-finite values, not on speed");
   run->add_flag("--print-default-scene", args->print_default, "Print the built-in default scene as TOML and exit");
   run->add_flag("-q,--quiet", args->quiet, "No progress lines");
   run->callback([args] {

@@ -18,6 +18,10 @@ int main(int argc, char** argv) {
 #endif
   try {
     app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    // A subcommand's own exit code (2 bad input, 3 numerical failure, 128+signal ...): the
+    // subcommand has already reported the problem.
+    return e.get_exit_code();
   } catch (const CLI::ParseError& e) {
     // CLI11 prints usage errors; bad arguments are bad input.
     const int code = app.exit(e);

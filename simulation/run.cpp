@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
+#include <optional>
 #include <ostream>
 
 #include "postprocessing/metrics.hpp"
@@ -11,7 +12,10 @@
 namespace rubble {
 namespace {
 
+namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
+
+double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 std::string format_duration(double seconds) {
   if (!std::isfinite(seconds) || seconds < 0) return "?";
@@ -19,18 +23,6 @@ std::string format_duration(double seconds) {
   if (s >= 3600) return fmt::format("{}h{:02}m", s / 3600, (s % 3600) / 60);
   if (s >= 60) return fmt::format("{}m{:02}s", s / 60, s % 60);
   return fmt::format("{}s", s);
-}
-
-/// Stops the run with a clear message if any grain's state is not finite.
-void check_finite(const Model& model, const State& state) {
-  for (std::size_t b = 0; b < model.body_count(); ++b) {
-    if (!state.position[b].allFinite() || !state.velocity[b].allFinite() || !state.angular_velocity[b].allFinite() ||
-        !state.orientation[b].coeffs().allFinite()) {
-      throw NumericalFailure(fmt::format("non-finite state at step {} (t = {:.6g} s), body {}, after the step's "
-                                         "update_positions stage",
-                                         state.step, state.time, b));
-    }
-  }
 }
 
 /// Steps between snapshots from the output options.
@@ -42,35 +34,182 @@ std::int64_t snapshot_period(const RunOptions& run, std::int64_t total_steps) {
   return std::max<std::int64_t>(1, total_steps / 100);
 }
 
+/// The runaway bound on body b's speed (m/s), or a negative number when there is none.
+double speed_limit(const Model& model, std::size_t b, double h, double max_speed) {
+  if (max_speed != 0.0) return max_speed;  // explicit bound, or < 0: disabled
+  // A grain that moves farther than its bounding radius in one step can pass through a
+  // neighbour or a wall between two detections: the contact law is no longer enforced.
+  return model.bounding_radius[b] / h;
+}
+
+/// A bad body and what is wrong with it.
+struct Problem {
+  std::size_t body = 0;
+  std::string what;
+};
+
+/// What is wrong with one body's velocity (non-finite, or faster than `limit` if limit >= 0).
+std::optional<std::string> velocity_problem(const Vec3& v, const Vec3& w, double limit) {
+  if (!v.allFinite() || !w.allFinite()) {
+    return fmt::format("non-finite velocity ({}, {}, {}) m/s, angular ({}, {}, {}) rad/s", v.x(), v.y(), v.z(), w.x(),
+                       w.y(), w.z());
+  }
+  if (limit >= 0.0 && v.norm() > limit) {
+    return fmt::format("runaway speed {:.4g} m/s above the bound {:.4g} m/s", v.norm(), limit);
+  }
+  return std::nullopt;
+}
+
+/// The first body (lowest id) whose end-of-step state is non-finite or runs away. Cheap: one
+/// pass over the bodies per step.
+std::optional<Problem> check_state(const Model& model, const State& state, double h, double max_speed) {
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!state.position[b].allFinite() || !state.orientation[b].coeffs().allFinite()) {
+      return Problem{b, fmt::format("non-finite position ({}, {}, {}) or orientation", state.position[b].x(),
+                                    state.position[b].y(), state.position[b].z())};
+    }
+    const double limit = model.is_fixed(b) ? -1.0 : speed_limit(model, b, h, max_speed);
+    if (auto what = velocity_problem(state.velocity[b], state.angular_velocity[b], limit)) return Problem{b, *what};
+  }
+  return std::nullopt;
+}
+
+/// After a failed step, finds the first stage whose output was bad, reading the stages' outputs
+/// left in the workspace (forces, contacts, impulses, end-of-step velocities) in step order and
+/// recomputing the one that is overwritten (the free velocity, from the state before the step).
+/// Only runs on failure, so the run pays nothing for it.
+std::string locate_failure(const Model& model, const State& before, const StepWorkspace& workspace,
+                           const StepOptions& options, double max_speed, Problem& problem) {
+  const double h = options.integrator.time_step;
+  const std::size_t n = model.body_count();
+  for (std::size_t b = 0; b < n && b < workspace.force.size(); ++b) {
+    if (!workspace.force[b].allFinite()) {
+      problem = {b, "non-finite external force"};
+      return "external_forces";
+    }
+  }
+  BodyVelocities free;
+  compute_free_velocity(model, before, workspace.force, {}, h, free);
+  for (std::size_t b = 0; b < n; ++b) {
+    if (model.is_fixed(b)) continue;
+    if (auto what = velocity_problem(free.linear[b], free.angular[b], speed_limit(model, b, h, max_speed))) {
+      problem = {b, "free velocity: " + *what};
+      return "free_velocity";
+    }
+  }
+  const auto contact_body = [](const Contact& c) { return static_cast<std::size_t>(c.id.body_b); };
+  for (const Contact& c : workspace.contacts) {
+    if (!c.point.allFinite() || !c.frame.allFinite() || !std::isfinite(c.gap)) {
+      problem = {contact_body(c), fmt::format("contact with body {}: non-finite point, frame or gap", c.id.body_a)};
+      return "narrow_phase";
+    }
+  }
+  for (const Contact& c : workspace.contacts) {
+    if (!c.delassus.allFinite() || !std::isfinite(c.normal_velocity_target) || !std::isfinite(c.normal_velocity_before)) {
+      problem = {contact_body(c), fmt::format("contact with body {}: non-finite Delassus block or target velocity",
+                                              c.id.body_a)};
+      return "solver_preparation";
+    }
+  }
+  for (const Contact& c : workspace.contacts) {
+    if (!c.impulse.allFinite()) {
+      problem = {contact_body(c), fmt::format("contact with body {}: non-finite impulse", c.id.body_a)};
+      return "nlgs_sweeps";
+    }
+  }
+  for (std::size_t b = 0; b < n && b < workspace.velocity.linear.size(); ++b) {
+    if (model.is_fixed(b)) continue;
+    if (auto what = velocity_problem(workspace.velocity.linear[b], workspace.velocity.angular[b],
+                                     speed_limit(model, b, h, max_speed))) {
+      problem = {b, "end-of-step velocity: " + *what};
+      return "nlgs_sweeps";
+    }
+  }
+  return "update_positions";
+}
+
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) {
   const Model& model = scene.model;
   const RunOptions& run = scene.run;
+  const double h = run.step.integrator.time_step;
   State state = scene.state;
   StepWorkspace workspace;
   RunSummary summary;
+  RunProgress progress;
 
-  std::filesystem::create_directories(run.output.directory);
-  summary.run_file = std::filesystem::path(run.output.directory) / "run.h5";
+  const fs::path directory = run.output.directory;
+  fs::create_directories(directory);
+  summary.run_file = directory / "run.h5";
+  const fs::path checkpoints = checkpoint_folder(directory);
   std::vector<std::string_view> stage_names;
   for (std::size_t s = 0; s < static_cast<std::size_t>(Stage::count); ++s) stage_names.push_back(stage_name(static_cast<Stage>(s)));
-  RunFile file = RunFile::create(summary.run_file, model, control.scene_text, stage_names);
 
-  const double h = run.step.integrator.time_step;
-  const auto total_steps = static_cast<std::int64_t>(std::ceil((run.end_time - state.time) / h - 1e-9));
-  const std::int64_t period = snapshot_period(run, total_steps);
+  // The end step follows from the scene's initial state and the end time, the same way in a new
+  // run and in a resumed one (whose scene is parsed from the same text).
+  const auto total_steps =
+      std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil((run.end_time - scene.state.time) / h - 1e-9)));
+  std::optional<RunFile> file;
+  std::int64_t last_checkpoint_step = -1;
+  if (control.resume != nullptr) {
+    const Checkpoint& from = *control.resume;
+    if (from.state.body_count() != model.body_count()) {
+      throw CheckpointError(fmt::format("checkpoint of {} bodies, the scene has {}", from.state.body_count(),
+                                        model.body_count()));
+    }
+    state = from.state;
+    workspace.contacts = from.contacts;
+    workspace.detection_memory = from.detection_memory;
+    progress = from.progress;  // the snapshot period stays that of the first session
+    file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
+    if (file->series_rows() != progress.series_rows || file->snapshot_count() != progress.snapshots) {
+      throw CheckpointError(fmt::format(
+          "{}: has {} series rows and {} snapshots up to step {}, the checkpoint expects {} and {}: the run file "
+          "does not belong to this checkpoint",
+          summary.run_file.string(), file->series_rows(), file->snapshot_count(), state.step, progress.series_rows,
+          progress.snapshots));
+    }
+    last_checkpoint_step = state.step;
+  } else {
+    file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names));
+    progress.first_step = state.step;
+    progress.snapshot_period = snapshot_period(run, total_steps);
+  }
+  file->hold_metadata_until_flush();
+  progress.end_step = progress.first_step + total_steps;
+  summary.first_step = state.step;
+
+  const auto write_checkpoint_now = [&] {
+    file->flush();  // the run file first: the checkpoint then never promises rows that are not on disk
+    progress.series_rows = file->series_rows();
+    progress.snapshots = file->snapshot_count();
+    Checkpoint checkpoint{control.scene_text, control.scene_source, run.end_time, run.seed, state,
+                          workspace.contacts,  workspace.detection_memory, progress};
+    summary.last_checkpoint = write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept);
+    last_checkpoint_step = state.step;
+  };
+
   const auto start = Clock::now();
   auto last_progress = start;
-  double iteration_sum = 0.0;
+  auto last_checkpoint_time = start;
+  if (control.resume == nullptr) file->write_snapshot(state, workspace.contacts);
 
-  file.write_snapshot(state, workspace.contacts);
-  ++summary.snapshots;
-  for (std::int64_t k = 0; k < total_steps; ++k) {
+  State before;  // the state at the start of the step, to locate a failure
+  while (state.step < progress.end_step) {
     const auto step_start = Clock::now();
+    before = state;
     const StepReport report = step(model, state, workspace, run.step);
-    check_finite(model, state);
-    const double step_seconds = std::chrono::duration<double>(Clock::now() - step_start).count();
+    if (std::optional<Problem> problem = check_state(model, state, h, control.max_speed)) {
+      const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
+      file->flush();
+      throw NumericalFailure(fmt::format(
+          "step {} (t = {:.6g} s), stage {}: body {}: {}. The run stopped; the last checkpoint ({}) is intact.",
+          state.step, state.time, stage, problem->body, problem->what,
+          last_checkpoint_step >= 0 ? fmt::format("step {}", last_checkpoint_step) : std::string("none")));
+    }
+    const auto step_end = Clock::now();
+    const double step_seconds = seconds_between(step_start, step_end);
 
     SeriesRow row;
     row.step = state.step;
@@ -82,34 +221,55 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     row.residual = report.solver.residual;
     row.wall_seconds = step_seconds;
     row.stage_seconds = report.stage_seconds;
-    file.append_series(row);
+    file->append_series(row);
 
-    iteration_sum += report.solver.iterations;
-    summary.max_residual = std::max(summary.max_residual, report.solver.residual);
-    if (!report.solver.converged) ++summary.unconverged_steps;
-    if ((k + 1) % period == 0 || k + 1 == total_steps) {
-      file.write_snapshot(state, workspace.contacts);
-      ++summary.snapshots;
+    progress.iteration_sum += report.solver.iterations;
+    progress.max_residual = std::max(progress.max_residual, report.solver.residual);
+    if (!report.solver.converged) ++progress.unconverged_steps;
+    progress.wall_seconds += step_seconds;
+    const std::int64_t done = state.step - progress.first_step;
+    const bool at_end = state.step == progress.end_step;
+    if (done % progress.snapshot_period == 0 || at_end) file->write_snapshot(state, workspace.contacts);
+
+    const bool stop = control.stop_requested != nullptr && control.stop_requested->load(std::memory_order_relaxed) != 0;
+    const bool by_steps = control.checkpoint_every_steps > 0 && done % control.checkpoint_every_steps == 0;
+    const bool by_time =
+        control.checkpoint_interval > 0.0 && seconds_between(last_checkpoint_time, step_end) >= control.checkpoint_interval;
+    if (stop || by_steps || by_time || at_end) {
+      write_checkpoint_now();
+      last_checkpoint_time = Clock::now();
     }
 
     const auto now = Clock::now();
-    if (control.progress && (std::chrono::duration<double>(now - last_progress).count() >= run.output.progress_interval ||
-                             k + 1 == total_steps)) {
-      const double elapsed = std::chrono::duration<double>(now - start).count();
-      const double eta = elapsed / static_cast<double>(k + 1) * static_cast<double>(total_steps - k - 1);
+    if (control.progress && (seconds_between(last_progress, now) >= run.output.progress_interval || at_end || stop)) {
+      const double elapsed = seconds_between(start, now);
+      const auto session_steps = static_cast<double>(state.step - summary.first_step);
+      const double eta = elapsed / session_steps * static_cast<double>(progress.end_step - state.step);
       *control.progress << fmt::format(
           "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J  elapsed {}  ETA {}\n",
-          k + 1, total_steps, state.time, report.contacts, report.solver.iterations, report.solver.residual,
+          state.step, progress.end_step, state.time, report.contacts, report.solver.iterations, report.solver.residual,
           row.kinetic_energy, format_duration(elapsed), format_duration(eta));
       control.progress->flush();
       last_progress = now;
     }
+    if (stop) {
+      summary.interrupted = true;
+      break;
+    }
   }
-  file.flush();
-  summary.steps = total_steps;
+  if (last_checkpoint_step != state.step) write_checkpoint_now();  // e.g. a run of zero steps
+  file->flush();
+
+  summary.final_step = state.step;
+  summary.steps = state.step - summary.first_step;
   summary.simulated_time = state.time;
-  summary.wall_seconds = std::chrono::duration<double>(Clock::now() - start).count();
-  summary.mean_iterations = total_steps > 0 ? iteration_sum / static_cast<double>(total_steps) : 0.0;
+  summary.wall_seconds = seconds_between(start, Clock::now());
+  const std::int64_t run_steps = state.step - progress.first_step;
+  summary.mean_iterations = run_steps > 0 ? progress.iteration_sum / static_cast<double>(run_steps) : 0.0;
+  summary.max_residual = progress.max_residual;
+  summary.unconverged_steps = progress.unconverged_steps;
+  summary.snapshots = file->snapshot_count();
+  summary.state_hash = state_hash(state);
   return summary;
 }
 

@@ -1,15 +1,21 @@
 #pragma once
-// The run loop: steps a scene to its end time, prints progress, writes the run file.
+// The run loop: steps a scene to its end time, prints progress, writes the run file, writes
+// checkpoints and resumes from them (docs/checkpoints.md), and stops with a message on a
+// numerical failure.
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <stdexcept>
 #include <string>
 
+#include "simulation/checkpoint.hpp"
 #include "simulation/scene.hpp"
 
 namespace rubble {
 
-/// Raised when the state becomes non-finite or runs away; names the step, body and stage.
+/// Raised when the state becomes non-finite or runs away; names the step, the body and the
+/// first stage of the step whose output was bad. The last checkpoint is left untouched.
 struct NumericalFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -17,23 +23,56 @@ struct NumericalFailure : std::runtime_error {
 /// What the caller of run_scene controls besides the scene.
 struct RunControl {
   std::ostream* progress = nullptr;  ///< where progress lines go (nullptr: silent)
-  std::string scene_text;            ///< the scene as TOML, stored in the run file
+  std::string scene_text;            ///< the scene as TOML, stored in the run file and the checkpoints
+  std::string scene_source;          ///< the name the scene was parsed under (saved for resuming)
+
+  /// Write a checkpoint every N steps (0: not by step count).
+  std::int64_t checkpoint_every_steps = 0;
+  /// Write a checkpoint when this many seconds of wall time passed since the last one (0: not by
+  /// wall time). Either trigger writes one; a run also writes one at its end and when stopped.
+  double checkpoint_interval = 600.0;
+  /// Checkpoints kept in DIR/checkpoints (the newest ones).
+  int checkpoints_kept = 2;
+
+  /// Runaway bound on a grain's speed, m/s. 0 (default): automatic, per grain: a grain may not
+  /// move farther than its bounding radius in one step (|v| h <= bounding radius), beyond which
+  /// contact detection can miss contacts altogether. A negative value disables the check.
+  double max_speed = 0.0;
+
+  /// Set asynchronously (by a SIGINT/SIGTERM handler, to the signal's number) to ask the run to
+  /// stop: nonzero makes it finish the current step, write a checkpoint and return with
+  /// RunSummary::interrupted. May be nullptr.
+  const std::atomic<int>* stop_requested = nullptr;
+
+  /// Resume from this checkpoint instead of the scene's initial state (nullptr: a new run). The
+  /// scene must be the checkpoint's (parsed from its scene_text); run.end_time may differ from
+  /// the checkpoint's to extend or shorten the run. The run file DIR/run.h5 is reopened and cut
+  /// back to the checkpoint's step.
+  const Checkpoint* resume = nullptr;
 };
 
 /// What a run did.
 struct RunSummary {
-  std::int64_t steps = 0;              ///< steps taken
+  std::int64_t first_step = 0;         ///< state.step when this session started (> 0 when resumed)
+  std::int64_t steps = 0;              ///< steps taken in this session
+  std::int64_t final_step = 0;         ///< state.step at the end
   double simulated_time = 0.0;         ///< s
-  double wall_seconds = 0.0;           ///< s
-  double mean_iterations = 0.0;        ///< NLGS sweeps per step
-  double max_residual = 0.0;           ///< largest end-of-step residual
-  std::int64_t unconverged_steps = 0;  ///< steps that hit max_iterations
-  std::int64_t snapshots = 0;          ///< snapshots written
+  double wall_seconds = 0.0;           ///< s, this session
+  double mean_iterations = 0.0;        ///< NLGS sweeps per step, over the whole run
+  double max_residual = 0.0;           ///< largest end-of-step residual, over the whole run
+  std::int64_t unconverged_steps = 0;  ///< steps that hit max_iterations, over the whole run
+  std::int64_t snapshots = 0;          ///< snapshots in the run file
   std::filesystem::path run_file;      ///< the HDF5 file written
+  bool interrupted = false;            ///< stopped by RunControl::stop_requested before the end
+  std::filesystem::path last_checkpoint;  ///< the checkpoint written last (empty if none)
+  std::uint64_t state_hash = 0;        ///< state_hash() of the final state
 };
 
-/// Runs `scene` from its initial state to its end time. Writes DIR/run.h5 (model, per-step
-/// series, snapshots; docs/output-format.md) into scene.run.output.directory.
+/// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
+/// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in
+/// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory. Throws
+/// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors and
+/// CheckpointError if control.resume does not fit the scene or the run file.
 RunSummary run_scene(const Scene& scene, const RunControl& control);
 
 }  // namespace rubble

@@ -1,0 +1,447 @@
+#include "simulation/checkpoint.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <fmt/format.h>
+#include <type_traits>
+
+namespace rubble {
+namespace {
+
+namespace fs = std::filesystem;
+
+static_assert(std::endian::native == std::endian::little, "checkpoints are written little-endian");
+
+constexpr std::array<char, 8> magic{'R', 'U', 'B', 'B', 'L', 'E', 'C', 'K'};
+constexpr std::size_t header_bytes = 8 + 4 + 4 + 8;  // magic, version, reserved, payload size
+constexpr std::size_t trailer_bytes = 8;              // CRC-64
+
+/// CRC-64/XZ table: reflected ECMA-182 polynomial 0x42F0E1EBA9EA3693 (reversed 0xC96C5795D7870F42).
+constexpr std::array<std::uint64_t, 256> make_crc_table() {
+  std::array<std::uint64_t, 256> table{};
+  for (std::uint64_t i = 0; i < 256; ++i) {
+    std::uint64_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1) ? (c >> 1) ^ 0xC96C5795D7870F42ULL : c >> 1;
+    table[i] = c;
+  }
+  return table;
+}
+constexpr std::array<std::uint64_t, 256> crc_table = make_crc_table();
+
+/// Appends values to a byte buffer in native (little-endian) order.
+class Writer {
+ public:
+  template <typename T>
+    requires std::is_arithmetic_v<T>
+  void put(T value) {
+    const auto* p = reinterpret_cast<const std::byte*>(&value);
+    bytes.insert(bytes.end(), p, p + sizeof(T));
+  }
+  void put(const Vec3& v) {
+    put(v.x());
+    put(v.y());
+    put(v.z());
+  }
+  void put(const Mat3& m) {  // row by row
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) put(m(i, j));
+  }
+  void put(const Quat& q) {
+    put(q.w());
+    put(q.x());
+    put(q.y());
+    put(q.z());
+  }
+  void put(const std::string& text) {
+    put(static_cast<std::uint64_t>(text.size()));
+    const auto* p = reinterpret_cast<const std::byte*>(text.data());
+    bytes.insert(bytes.end(), p, p + text.size());
+  }
+  template <typename T>
+  void put_array(const std::vector<T>& values) {
+    put(static_cast<std::uint64_t>(values.size()));
+    for (const T& v : values) put(v);
+  }
+  std::vector<std::byte> bytes;
+};
+
+/// Reads values back, checking every read against the end of the payload.
+class Reader {
+ public:
+  Reader(std::span<const std::byte> bytes, const std::string& source) : bytes_(bytes), source_(source) {}
+
+  template <typename T>
+    requires std::is_arithmetic_v<T>
+  T get() {
+    need(sizeof(T), "a number");
+    T value;
+    std::memcpy(&value, bytes_.data() + offset_, sizeof(T));
+    offset_ += sizeof(T);
+    return value;
+  }
+  Vec3 vec3() {
+    const double x = get<double>(), y = get<double>(), z = get<double>();
+    return Vec3(x, y, z);
+  }
+  Mat3 mat3() {
+    Mat3 m;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) m(i, j) = get<double>();
+    return m;
+  }
+  Quat quat() {
+    const double w = get<double>(), x = get<double>(), y = get<double>(), z = get<double>();
+    return Quat(w, x, y, z);
+  }
+  std::string text() {
+    const std::uint64_t size = get<std::uint64_t>();
+    need(size, "a string");
+    std::string value(reinterpret_cast<const char*>(bytes_.data() + offset_), static_cast<std::size_t>(size));
+    offset_ += static_cast<std::size_t>(size);
+    return value;
+  }
+  /// Reads an array length and checks that `element_bytes` per element fit in what is left, so
+  /// that a damaged length can never make us allocate absurd amounts.
+  std::size_t length(std::size_t element_bytes, const char* what) {
+    const std::uint64_t count = get<std::uint64_t>();
+    if (element_bytes > 0 && count > (bytes_.size() - offset_) / element_bytes) {
+      fail(fmt::format("{} has {} entries, more than the file can hold", what, count));
+    }
+    return static_cast<std::size_t>(count);
+  }
+  std::vector<Vec3> vec3_array(const char* what) {
+    std::vector<Vec3> values(length(24, what));
+    for (Vec3& v : values) v = vec3();
+    return values;
+  }
+  bool at_end() const { return offset_ == bytes_.size(); }
+  [[noreturn]] void fail(const std::string& message) const { throw CheckpointError(source_ + ": " + message); }
+
+ private:
+  void need(std::uint64_t size, const char* what) const {
+    if (size > bytes_.size() - offset_) fail(fmt::format("truncated payload while reading {}", what));
+  }
+  std::span<const std::byte> bytes_;
+  std::size_t offset_ = 0;
+  const std::string& source_;
+};
+
+void put_state(Writer& out, const State& state) {
+  out.put(state.time);
+  out.put(state.step);
+  out.put_array(state.position);
+  out.put_array(state.orientation);
+  out.put_array(state.velocity);
+  out.put_array(state.angular_velocity);
+}
+
+State get_state(Reader& in) {
+  State state;
+  state.time = in.get<double>();
+  state.step = in.get<std::int64_t>();
+  state.position = in.vec3_array("state.position");
+  state.orientation.resize(in.length(32, "state.orientation"));
+  for (Quat& q : state.orientation) q = in.quat();
+  state.velocity = in.vec3_array("state.velocity");
+  state.angular_velocity = in.vec3_array("state.angular_velocity");
+  const std::size_t n = state.position.size();
+  if (state.orientation.size() != n || state.velocity.size() != n || state.angular_velocity.size() != n) {
+    in.fail("state arrays of different lengths");
+  }
+  return state;
+}
+
+/// Every field of a contact: a resumed step must see last step's contacts exactly as the
+/// uninterrupted run did (the warm start reads id, frame and impulse; snapshots read the rest).
+void put_contact(Writer& out, const Contact& c) {
+  out.put(c.id.body_a);
+  out.put(c.id.body_b);
+  out.put(c.id.feature_a);
+  out.put(c.id.feature_b);
+  out.put(c.point);
+  out.put(c.frame);
+  out.put(c.gap);
+  out.put(c.arm_a);
+  out.put(c.arm_b);
+  out.put(c.delassus);
+  out.put(c.friction_coefficient);
+  out.put(c.normal_restitution);
+  out.put(c.normal_velocity_before);
+  out.put(c.normal_velocity_target);
+  out.put(c.impulse);
+  out.put(static_cast<std::uint8_t>(c.status));
+}
+constexpr std::size_t contact_bytes = 4 * 4 + 8 * (3 + 9 + 1 + 3 + 3 + 9 + 4 + 3) + 1;
+
+Contact get_contact(Reader& in) {
+  Contact c;
+  c.id.body_a = in.get<std::uint32_t>();
+  c.id.body_b = in.get<std::uint32_t>();
+  c.id.feature_a = in.get<std::uint32_t>();
+  c.id.feature_b = in.get<std::uint32_t>();
+  c.point = in.vec3();
+  c.frame = in.mat3();
+  c.gap = in.get<double>();
+  c.arm_a = in.vec3();
+  c.arm_b = in.vec3();
+  c.delassus = in.mat3();
+  c.friction_coefficient = in.get<double>();
+  c.normal_restitution = in.get<double>();
+  c.normal_velocity_before = in.get<double>();
+  c.normal_velocity_target = in.get<double>();
+  c.impulse = in.vec3();
+  const auto status = in.get<std::uint8_t>();
+  if (status > static_cast<std::uint8_t>(ContactStatus::sliding)) in.fail(fmt::format("contact status {}", status));
+  c.status = static_cast<ContactStatus>(status);
+  return c;
+}
+
+void put_progress(Writer& out, const RunProgress& p) {
+  out.put(p.first_step);
+  out.put(p.end_step);
+  out.put(p.snapshot_period);
+  out.put(p.series_rows);
+  out.put(p.snapshots);
+  out.put(p.iteration_sum);
+  out.put(p.max_residual);
+  out.put(p.unconverged_steps);
+  out.put(p.wall_seconds);
+}
+
+RunProgress get_progress(Reader& in) {
+  RunProgress p;
+  p.first_step = in.get<std::int64_t>();
+  p.end_step = in.get<std::int64_t>();
+  p.snapshot_period = in.get<std::int64_t>();
+  p.series_rows = in.get<std::int64_t>();
+  p.snapshots = in.get<std::int64_t>();
+  p.iteration_sum = in.get<double>();
+  p.max_residual = in.get<double>();
+  p.unconverged_steps = in.get<std::int64_t>();
+  p.wall_seconds = in.get<double>();
+  if (p.snapshot_period < 1 || p.end_step < p.first_step || p.series_rows < 0 || p.snapshots < 0) {
+    in.fail("inconsistent run progress (snapshot period, end step, rows)");
+  }
+  return p;
+}
+
+[[noreturn]] void io_error(const fs::path& path, const std::string& what) {
+  throw std::runtime_error(fmt::format("{}: {}: {}", path.string(), what, std::strerror(errno)));
+}
+
+/// Writes all bytes to a new file and fsyncs it before closing, so that after the rename the
+/// data are on disk before the name is.
+void write_file_synced(const fs::path& path, std::span<const std::byte> bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) io_error(path, "cannot create the checkpoint file");
+  std::size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int saved = errno;
+      ::close(fd);
+      errno = saved;
+      io_error(path, "cannot write the checkpoint file");
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    const int saved = errno;
+    ::close(fd);
+    errno = saved;
+    io_error(path, "cannot fsync the checkpoint file");
+  }
+  if (::close(fd) != 0) io_error(path, "cannot close the checkpoint file");
+}
+
+/// fsync of a folder makes a rename inside it durable (POSIX leaves it otherwise unspecified).
+void sync_folder(const fs::path& folder) {
+  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) io_error(folder, "cannot open the checkpoint folder");
+  const int status = ::fsync(fd);
+  ::close(fd);
+  if (status != 0 && errno != EINVAL) io_error(folder, "cannot fsync the checkpoint folder");
+}
+
+bool is_checkpoint_name(const std::string& name) {
+  return name.size() == 5 + 12 + 5 && name.starts_with("step-") && name.ends_with(".ckpt") &&
+         std::all_of(name.begin() + 5, name.begin() + 17, [](char c) { return c >= '0' && c <= '9'; });
+}
+
+}  // namespace
+
+std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc) {
+  crc = ~crc;
+  for (std::byte b : bytes) crc = crc_table[(crc ^ static_cast<std::uint8_t>(b)) & 0xFF] ^ (crc >> 8);
+  return ~crc;
+}
+
+std::uint64_t state_hash(const State& state) {
+  Writer out;
+  put_state(out, state);
+  return crc64(out.bytes);
+}
+
+std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint) {
+  Writer payload;
+  payload.put(checkpoint.scene_text);
+  payload.put(checkpoint.scene_source);
+  payload.put(checkpoint.end_time);
+  payload.put(checkpoint.seed);
+  put_state(payload, checkpoint.state);
+  payload.put(static_cast<std::uint64_t>(checkpoint.contacts.size()));
+  for (const Contact& c : checkpoint.contacts) put_contact(payload, c);
+  const DetectionMemory& memory = checkpoint.detection_memory;
+  payload.put(static_cast<std::uint64_t>(memory.pairs.size()));
+  for (std::size_t k = 0; k < memory.pairs.size(); ++k) {
+    payload.put(memory.pairs[k].body_a);
+    payload.put(memory.pairs[k].body_b);
+    payload.put(k < memory.common_normals.size() ? memory.common_normals[k] : Vec3::Zero());
+  }
+  put_progress(payload, checkpoint.progress);
+
+  Writer file;
+  for (char c : magic) file.put(c);
+  file.put(checkpoint_format_version);
+  file.put(std::uint32_t{0});
+  file.put(static_cast<std::uint64_t>(payload.bytes.size()));
+  file.bytes.insert(file.bytes.end(), payload.bytes.begin(), payload.bytes.end());
+  file.put(crc64(file.bytes));
+  return std::move(file.bytes);
+}
+
+Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::string& source) {
+  if (bytes.size() < header_bytes + trailer_bytes) {
+    throw CheckpointError(fmt::format("{}: truncated checkpoint ({} bytes, a header alone takes {})", source,
+                                      bytes.size(), header_bytes + trailer_bytes));
+  }
+  if (std::memcmp(bytes.data(), magic.data(), magic.size()) != 0) {
+    throw CheckpointError(source + ": not a rubble checkpoint (bad magic bytes)");
+  }
+  Reader header(bytes.subspan(0, header_bytes), source);
+  for (std::size_t i = 0; i < magic.size(); ++i) header.get<char>();
+  const auto version = header.get<std::uint32_t>();
+  header.get<std::uint32_t>();
+  const auto payload_size = header.get<std::uint64_t>();
+  if (version != checkpoint_format_version) {
+    throw CheckpointError(fmt::format("{}: checkpoint format version {}, this rubble reads version {}", source,
+                                      version, checkpoint_format_version));
+  }
+  if (payload_size != bytes.size() - header_bytes - trailer_bytes) {
+    throw CheckpointError(fmt::format("{}: truncated or extended checkpoint: the header announces {} payload bytes, "
+                                      "the file holds {}",
+                                      source, payload_size, bytes.size() - header_bytes - trailer_bytes));
+  }
+  std::uint64_t stored_crc = 0;
+  std::memcpy(&stored_crc, bytes.data() + bytes.size() - trailer_bytes, trailer_bytes);
+  const std::uint64_t crc = crc64(bytes.subspan(0, bytes.size() - trailer_bytes));
+  if (crc != stored_crc) {
+    throw CheckpointError(fmt::format("{}: checksum mismatch (stored {:016x}, computed {:016x}): the file is damaged",
+                                      source, stored_crc, crc));
+  }
+
+  Reader in(bytes.subspan(header_bytes, static_cast<std::size_t>(payload_size)), source);
+  Checkpoint checkpoint;
+  checkpoint.scene_text = in.text();
+  checkpoint.scene_source = in.text();
+  checkpoint.end_time = in.get<double>();
+  checkpoint.seed = in.get<std::uint64_t>();
+  checkpoint.state = get_state(in);
+  const std::size_t n = checkpoint.state.body_count();
+  checkpoint.contacts.resize(in.length(contact_bytes, "contacts"));
+  for (Contact& c : checkpoint.contacts) {
+    c = get_contact(in);
+    if (c.id.body_a >= n || c.id.body_b >= n) in.fail("contact body id out of range");
+  }
+  const std::size_t pairs = in.length(4 + 4 + 24, "detection memory");
+  checkpoint.detection_memory.pairs.resize(pairs);
+  checkpoint.detection_memory.common_normals.resize(pairs);
+  for (std::size_t k = 0; k < pairs; ++k) {
+    checkpoint.detection_memory.pairs[k].body_a = in.get<std::uint32_t>();
+    checkpoint.detection_memory.pairs[k].body_b = in.get<std::uint32_t>();
+    checkpoint.detection_memory.common_normals[k] = in.vec3();
+  }
+  checkpoint.progress = get_progress(in);
+  if (!in.at_end()) in.fail("unexpected bytes after the payload");
+  if (checkpoint.state.step < checkpoint.progress.first_step || checkpoint.state.step > checkpoint.progress.end_step) {
+    in.fail(fmt::format("step {} outside the run's steps [{}, {}]", checkpoint.state.step,
+                        checkpoint.progress.first_step, checkpoint.progress.end_step));
+  }
+  return checkpoint;
+}
+
+fs::path checkpoint_folder(const fs::path& output_directory) { return output_directory / "checkpoints"; }
+
+fs::path write_checkpoint(const fs::path& folder, const Checkpoint& checkpoint, int keep) {
+  keep = std::max(keep, 1);
+  fs::create_directories(folder);
+  const std::string name = fmt::format("step-{:012}.ckpt", checkpoint.state.step);
+  const fs::path final_path = folder / name;
+  const fs::path temporary = folder / (name + ".tmp");
+  write_file_synced(temporary, serialize_checkpoint(checkpoint));
+  if (::rename(temporary.c_str(), final_path.c_str()) != 0) io_error(final_path, "cannot rename the checkpoint into place");
+  sync_folder(folder);
+
+  // Only now, with the new checkpoint durable, drop the old ones (and stray temporaries).
+  const std::vector<fs::path> all = list_checkpoints(folder);
+  for (std::size_t k = static_cast<std::size_t>(keep); k < all.size(); ++k) {
+    std::error_code ignored;
+    fs::remove(all[k], ignored);
+  }
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string file = entry.path().filename().string();
+    if (file.ends_with(".ckpt.tmp")) {
+      std::error_code ignored;
+      fs::remove(entry.path(), ignored);
+    }
+  }
+  return final_path;
+}
+
+Checkpoint read_checkpoint(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw CheckpointError(file.string() + ": cannot open the checkpoint file");
+  std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw CheckpointError(file.string() + ": cannot read the checkpoint file");
+  const std::span<const std::byte> bytes(reinterpret_cast<const std::byte*>(raw.data()), raw.size());
+  return deserialize_checkpoint(bytes, file.string());
+}
+
+std::vector<fs::path> list_checkpoints(const fs::path& folder) {
+  std::vector<fs::path> files;
+  std::error_code error;
+  if (!fs::is_directory(folder, error)) return files;
+  for (const auto& entry : fs::directory_iterator(folder, error)) {
+    if (is_checkpoint_name(entry.path().filename().string())) files.push_back(entry.path());
+  }
+  // Zero-padded step numbers: names sort by step.
+  std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) { return a.filename() > b.filename(); });
+  return files;
+}
+
+LoadedCheckpoint load_newest_checkpoint(const fs::path& folder) {
+  LoadedCheckpoint loaded;
+  for (const fs::path& file : list_checkpoints(folder)) {
+    try {
+      loaded.checkpoint = read_checkpoint(file);
+      loaded.file = file;
+      return loaded;
+    } catch (const CheckpointError& error) {
+      loaded.rejected.emplace_back(error.what());
+    }
+  }
+  std::string message = folder.string() + ": no usable checkpoint";
+  if (loaded.rejected.empty()) message += " (no step-*.ckpt file)";
+  for (const std::string& reason : loaded.rejected) message += "\n  rejected " + reason;
+  throw CheckpointError(message);
+}
+
+}  // namespace rubble

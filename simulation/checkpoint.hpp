@@ -1,0 +1,113 @@
+#pragma once
+// Checkpoints: everything a run needs to go on from step K exactly as if it had never stopped
+// (docs/checkpoints.md). A checkpoint holds the scene text (the model is rebuilt from it), the
+// State, the StepWorkspace data carried between steps (last step's contacts with their impulses =
+// the warm start, and the detection memory), and the run loop's own bookkeeping (end step,
+// snapshot cadence, rows and snapshots already in the run file, summary accumulators).
+//
+// File format (one binary file per checkpoint, little-endian as written by x86-64/aarch64):
+//   "RUBBLECK" | u32 format version | u32 0 | u64 payload size P | P payload bytes | u64 CRC-64
+// where the CRC-64 (ECMA-182 polynomial, reflected, as in xz: check value of "123456789" is
+// 0x995DC9BBDF1939FA) covers every byte before it. A file whose size, magic, version or CRC does
+// not match is rejected with a CheckpointError, so a truncated or damaged checkpoint is never
+// loaded.
+//
+// Files live in DIR/checkpoints/ as step-NNNNNNNNNNNN.ckpt (NNNN = state.step, 12 digits, so that
+// names sort by step). write_checkpoint writes a temporary file, fsyncs it, renames it into place
+// and fsyncs the folder (POSIX: the rename is atomic, so a reader sees the old set of files or the
+// new one, never half a file), then deletes all but the newest `keep` checkpoints.
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "contact_detection/contact.hpp"
+#include "contact_detection/detection.hpp"
+#include "core/state.hpp"
+
+namespace rubble {
+
+/// A checkpoint that cannot be used (missing, truncated, wrong format, checksum mismatch,
+/// inconsistent content). what() names the file.
+struct CheckpointError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// The run loop's bookkeeping, saved so that a resumed run continues its outputs with no step
+/// written twice or missing and ends with the same summary.
+struct RunProgress {
+  std::int64_t first_step = 0;         ///< state.step when the run started (the scene's initial step)
+  std::int64_t end_step = 0;           ///< state.step at which the run ends
+  std::int64_t snapshot_period = 1;    ///< steps between snapshots, counted from first_step
+  std::int64_t series_rows = 0;        ///< rows in the run file's /series up to this checkpoint
+  std::int64_t snapshots = 0;          ///< snapshots in the run file up to this checkpoint
+  double iteration_sum = 0.0;          ///< sum of NLGS sweeps over the steps taken
+  double max_residual = 0.0;           ///< largest end-of-step residual so far
+  std::int64_t unconverged_steps = 0;  ///< steps that hit max_iterations so far
+  double wall_seconds = 0.0;           ///< wall time spent stepping so far, over every session
+};
+
+/// Everything saved at a checkpoint.
+struct Checkpoint {
+  std::string scene_text;    ///< the scene as TOML (the model is rebuilt from it on resume)
+  std::string scene_source;  ///< the name the scene was parsed under (anchors relative paths)
+  double end_time = 0.0;     ///< s, the run's end time (after any --end-time override)
+  /// Seed of the scene's random draws. A run draws no random numbers while stepping (the only
+  /// generators are the scene's grain generators, which run once when the scene is parsed), so
+  /// the seed is the whole random-generator state; it is saved to rebuild the same grains.
+  std::uint64_t seed = 1;
+  State state;                       ///< positions, orientations, velocities, time, step
+  ContactList contacts;              ///< last step's contacts with every field (warm start)
+  DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
+  RunProgress progress;              ///< run-loop bookkeeping
+};
+
+/// Version of the checkpoint layout; bump on any change (older files are then rejected).
+inline constexpr std::uint32_t checkpoint_format_version = 1;
+
+/// CRC-64/XZ of `bytes`, continuing from `crc` (pass the previous result to chain; 0 to start).
+std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);
+
+/// A hash of a state: CRC-64 of its time, step and every body's position, orientation (w, x, y, z),
+/// velocity and angular velocity, bit for bit. Two states have the same hash if they are
+/// bitwise equal (and almost surely only then): what the restart tests compare.
+std::uint64_t state_hash(const State& state);
+
+/// The checkpoint as file bytes (header, payload, CRC).
+std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint);
+
+/// Parses file bytes; `source` names the file in messages. Throws CheckpointError on any mismatch
+/// (size, magic, version, CRC, array sizes, body ids out of range).
+Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::string& source);
+
+/// The folder of a run's checkpoints: output_directory/checkpoints.
+std::filesystem::path checkpoint_folder(const std::filesystem::path& output_directory);
+
+/// Writes `checkpoint` atomically as folder/step-NNNNNNNNNNNN.ckpt (folder created if missing),
+/// then deletes older checkpoints so that the newest `keep` (>= 1) remain, and any temporary file
+/// left by an interrupted write. Returns the file's path. Throws std::runtime_error on I/O errors
+/// (the previous checkpoints are then untouched).
+std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const Checkpoint& checkpoint, int keep = 2);
+
+/// Reads and checks one checkpoint file. Throws CheckpointError.
+Checkpoint read_checkpoint(const std::filesystem::path& file);
+
+/// Checkpoint files in `folder`, newest (highest step) first; empty if the folder is missing.
+std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& folder);
+
+/// A checkpoint found by load_newest_checkpoint.
+struct LoadedCheckpoint {
+  Checkpoint checkpoint;               ///< the newest valid one
+  std::filesystem::path file;          ///< its file
+  std::vector<std::string> rejected;   ///< why newer files were skipped (one message each)
+};
+
+/// Loads the newest checkpoint of `folder` that passes every check, skipping (and reporting in
+/// `rejected`) damaged newer ones. Throws CheckpointError if there is none, listing why each
+/// file was rejected.
+LoadedCheckpoint load_newest_checkpoint(const std::filesystem::path& folder);
+
+}  // namespace rubble
