@@ -2,7 +2,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <numeric>
+#include <span>
 
 #include "core/parallel.hpp"
 #include "nlgs_solver/coulomb.hpp"
@@ -42,10 +44,15 @@ struct BodyCoupledProblem {
     const Contact& c = contacts[k];
     const std::size_t a = c.id.body_a, b = c.id.body_b;
     const Vec3 p = c.frame * delta;  // world impulse on b; -p on a
-    velocity.linear[b] += model.inverse_mass[b] * p;
-    velocity.angular[b] += inverse_inertia_world[b] * c.arm_b.cross(p);
-    velocity.linear[a] -= model.inverse_mass[a] * p;
-    velocity.angular[a] -= inverse_inertia_world[a] * c.arm_a.cross(p);
+    // Walls are never written: contacts of one colour may share a wall and run in parallel.
+    if (!model.is_fixed(b)) {
+      velocity.linear[b] += model.inverse_mass[b] * p;
+      velocity.angular[b] += inverse_inertia_world[b] * c.arm_b.cross(p);
+    }
+    if (!model.is_fixed(a)) {
+      velocity.linear[a] -= model.inverse_mass[a] * p;
+      velocity.angular[a] -= inverse_inertia_world[a] * c.arm_a.cross(p);
+    }
   }
 };
 
@@ -85,6 +92,68 @@ std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state)
 Mat3 point_compliance(double inverse_mass, const Mat3& inverse_inertia, const Vec3& arm) {
   const Mat3 cross = skew(arm);
   return inverse_mass * Mat3::Identity() - cross * inverse_inertia * cross;
+}
+
+/// Contacts grouped by colour: no two contacts of one colour share a moving body, so a colour's
+/// local solves are independent and can run on any number of threads with the same result.
+/// Greedy colouring in contact order (deterministic); colours are swept in increasing order.
+struct ContactColouring {
+  std::vector<std::size_t> order;         ///< contact indices, colour by colour
+  std::vector<std::size_t> colour_start;  ///< colours + 1 offsets into order
+};
+
+ContactColouring colour_contacts(const Model& model, const ContactList& contacts) {
+  std::vector<std::vector<std::uint64_t>> used(model.body_count());  // colour bitsets per body
+  std::vector<std::size_t> colour(contacts.size());
+  std::size_t colour_count = 0;
+  auto is_used = [&](std::size_t body, std::size_t c) {
+    return !model.is_fixed(body) && c / 64 < used[body].size() && (used[body][c / 64] >> (c % 64)) & 1u;
+  };
+  auto mark = [&](std::size_t body, std::size_t c) {
+    if (model.is_fixed(body)) return;
+    if (used[body].size() <= c / 64) used[body].resize(c / 64 + 1, 0);
+    used[body][c / 64] |= std::uint64_t{1} << (c % 64);
+  };
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    const std::size_t a = contacts[k].id.body_a, b = contacts[k].id.body_b;
+    std::size_t c = 0;
+    while (is_used(a, c) || is_used(b, c)) ++c;
+    mark(a, c);
+    mark(b, c);
+    colour[k] = c;
+    colour_count = std::max(colour_count, c + 1);
+  }
+  ContactColouring result;
+  result.colour_start.assign(colour_count + 1, 0);
+  for (const std::size_t c : colour) ++result.colour_start[c + 1];
+  for (std::size_t c = 0; c < colour_count; ++c) result.colour_start[c + 1] += result.colour_start[c];
+  result.order.resize(contacts.size());
+  std::vector<std::size_t> next(result.colour_start.begin(), result.colour_start.end() - 1);
+  for (std::size_t k = 0; k < contacts.size(); ++k) result.order[next[colour[k]]++] = k;
+  return result;
+}
+
+/// One sweep over all colours. Each colour is cut into fixed-size chunks whose residual sums are
+/// added in chunk order, so the sum (and the stopping decision) is the same for any thread count.
+double coloured_sweep(BodyCoupledProblem& problem, const ContactColouring& colouring, double relaxation,
+                      std::vector<double>& chunk_residual) {
+  constexpr std::size_t chunk = 128;
+  double residual_squared = 0.0;
+  for (std::size_t c = 0; c + 1 < colouring.colour_start.size(); ++c) {
+    const std::size_t begin = colouring.colour_start[c];
+    const std::size_t end = colouring.colour_start[c + 1];
+    const auto chunks = static_cast<std::ptrdiff_t>((end - begin + chunk - 1) / chunk);
+    chunk_residual.assign(static_cast<std::size_t>(chunks), 0.0);
+#pragma omp parallel for schedule(static) if (static_cast<std::ptrdiff_t>(end - begin) >= min_parallel_items)
+    for (std::ptrdiff_t i = 0; i < chunks; ++i) {
+      const std::size_t first = begin + static_cast<std::size_t>(i) * chunk;
+      const std::size_t last = std::min(end, first + chunk);
+      const std::span<const std::size_t> part(colouring.order.data() + first, last - first);
+      chunk_residual[static_cast<std::size_t>(i)] = nlgs_sweep(problem, part, relaxation).residual_squared;
+    }
+    for (const double r : chunk_residual) residual_squared += r;
+  }
+  return residual_squared;
 }
 
 }  // namespace
@@ -136,12 +205,12 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   const double q_norm = std::sqrt(free_norm_squared);
   const double scale = q_norm > 0.0 ? 1.0 / q_norm : 1.0;
 
-  std::vector<std::size_t> order(contacts.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
+  const ContactColouring colouring = colour_contacts(model, contacts);
+  std::vector<double> chunk_residual;
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
-      const SweepResult sweep = nlgs_sweep(problem, order, options.relaxation);
-      if (std::sqrt(sweep.residual_squared) * scale <= options.tolerance) {
+      const double sweep_residual_squared = coloured_sweep(problem, colouring, options.relaxation, chunk_residual);
+      if (std::sqrt(sweep_residual_squared) * scale <= options.tolerance) {
         stats.converged = true;
         break;
       }
