@@ -71,7 +71,7 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
   std::vector<BodyPair> pairs;
   if (!grains.empty()) {
     // Cell size: the 90th-percentile bounding diameter plus the alert distance, so most grains
-    // span at most 2 cells per axis (at most 8 entries) while a few large grains (a 10:1 size
+    // span at most 2 cells per axis (at most 8 cells) while a few large grains (a 10:1 size
     // ratio) span more cells instead of making every cell large. The domain is capped to 2^20
     // cells per axis by growing the cell if needed.
     std::vector<double> radii(grains.size());
@@ -84,83 +84,95 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
       lower = lower.cwiseMin(box.lower);
       upper = upper.cwiseMax(box.upper);
     }
-    constexpr double max_cells = 1 << 20;
+    constexpr int max_cells = 1 << 20;
     double cell = 2.0 * radii[percentile] + alert_distance;
     cell = std::max(cell, (upper - lower).maxCoeff() / max_cells);
     if (!(cell > 0.0) || !std::isfinite(cell)) throw std::runtime_error("broad phase: non-finite grain positions");
 
-    auto cell_of = [&](const Vec3& p) -> Eigen::Vector3i {
-      return ((p - lower) / cell).array().floor().cast<int>().cwiseMax(0).cwiseMin(static_cast<int>(max_cells) - 1);
+    using Cell = Eigen::Vector3i;
+    auto cell_of = [&](const Vec3& p) -> Cell {
+      return ((p - lower) / cell).array().floor().cast<int>().cwiseMax(0).cwiseMin(max_cells - 1);
     };
-    auto key_of = [](const Eigen::Vector3i& c) {
-      return (static_cast<std::uint64_t>(c.x()) << 42) | (static_cast<std::uint64_t>(c.y()) << 21) |
-             static_cast<std::uint64_t>(c.z());
+    // Spatial hash of the cells into a table of 2^k buckets (about two per grain); a bucket may
+    // hold grains of several cells, which the cell-range test below tells apart.
+    std::size_t bucket_count = 1;
+    while (bucket_count < 2 * grains.size()) bucket_count <<= 1;
+    auto bucket_of = [&](const Cell& c) {
+      const std::uint64_t h = static_cast<std::uint64_t>(c.x()) * 73856093u ^ static_cast<std::uint64_t>(c.y()) * 19349663u ^
+                              static_cast<std::uint64_t>(c.z()) * 83492791u;
+      return static_cast<std::size_t>(h & (bucket_count - 1));
     };
-    struct Entry {
-      std::uint64_t cell_key;
-      std::uint32_t grain;  // index into grains
-      bool operator<(const Entry& o) const { return cell_key != o.cell_key ? cell_key < o.cell_key : grain < o.grain; }
-    };
-    std::vector<Entry> entries;
-    entries.reserve(grains.size() * 2);
+    std::vector<Cell> first_cell(grains.size()), last_cell(grains.size());
     for (std::size_t k = 0; k < grains.size(); ++k) {
-      const Eigen::Vector3i c0 = cell_of(boxes[k].lower);
-      const Eigen::Vector3i c1 = cell_of(boxes[k].upper);
-      for (int x = c0.x(); x <= c1.x(); ++x)
-        for (int y = c0.y(); y <= c1.y(); ++y)
-          for (int z = c0.z(); z <= c1.z(); ++z)
-            entries.push_back({key_of({x, y, z}), static_cast<std::uint32_t>(k)});
+      first_cell[k] = cell_of(boxes[k].lower);
+      last_cell[k] = cell_of(boxes[k].upper);
     }
-    std::sort(entries.begin(), entries.end());
-
-    // Cell runs, then pairs inside each run in parallel; each pair is reported only by the cell
-    // holding the lower corner of the overlap of the two boxes, so never twice.
-    std::vector<std::size_t> run_start;
-    for (std::size_t e = 0; e < entries.size(); ++e) {
-      if (e == 0 || entries[e].cell_key != entries[e - 1].cell_key) run_start.push_back(e);
-    }
-    run_start.push_back(entries.size());
-    const std::ptrdiff_t run_count = static_cast<std::ptrdiff_t>(run_start.size()) - 1;
-#pragma omp parallel if (run_count >= min_parallel_items)
+    auto for_each_cell = [&](std::size_t k, auto&& visit) {
+      for (int x = first_cell[k].x(); x <= last_cell[k].x(); ++x)
+        for (int y = first_cell[k].y(); y <= last_cell[k].y(); ++y)
+          for (int z = first_cell[k].z(); z <= last_cell[k].z(); ++z) visit(Cell(x, y, z));
+    };
+    // Counting sort of (bucket, grain) entries: buckets list their grains in increasing order.
+    std::vector<std::uint32_t> bucket_start(bucket_count + 1, 0);
+    for (std::size_t k = 0; k < grains.size(); ++k) for_each_cell(k, [&](const Cell& c) { ++bucket_start[bucket_of(c) + 1]; });
+    for (std::size_t b = 0; b < bucket_count; ++b) bucket_start[b + 1] += bucket_start[b];
+    std::vector<std::uint32_t> bucket_grains(bucket_start.back());
     {
-      std::vector<BodyPair> local;
-#pragma omp for schedule(dynamic, 64) nowait
-      for (std::ptrdiff_t r = 0; r < run_count; ++r) {
-        const std::size_t begin = run_start[static_cast<std::size_t>(r)];
-        const std::size_t end = run_start[static_cast<std::size_t>(r) + 1];
-        for (std::size_t i = begin; i < end; ++i) {
-          for (std::size_t j = i + 1; j < end; ++j) {
-            const Aabb& a = boxes[entries[i].grain];
-            const Aabb& b = boxes[entries[j].grain];
-            if (!overlap(a, b)) continue;
-            if (key_of(cell_of(a.lower.cwiseMax(b.lower))) != entries[i].cell_key) continue;
-            const std::uint32_t ga = grains[entries[i].grain];
-            const std::uint32_t gb = grains[entries[j].grain];
-            local.push_back({std::min(ga, gb), std::max(ga, gb)});
-          }
-        }
+      std::vector<std::uint32_t> fill(bucket_start.begin(), bucket_start.end() - 1);
+      for (std::size_t k = 0; k < grains.size(); ++k) {
+        for_each_cell(k, [&](const Cell& c) { bucket_grains[fill[bucket_of(c)]++] = static_cast<std::uint32_t>(k); });
       }
-#pragma omp critical(rubble_broad_phase)
-      pairs.insert(pairs.end(), local.begin(), local.end());
     }
+
+    // Pairs (k, j > k) of overlapping boxes, each reported only from the cell holding the lower
+    // corner of the two boxes' overlap. Grains are cut into fixed chunks whose pair lists are
+    // concatenated in order, so the result is sorted and independent of the thread count.
+    constexpr std::size_t chunk = 256;
+    const auto chunk_count = static_cast<std::ptrdiff_t>((grains.size() + chunk - 1) / chunk);
+    std::vector<std::vector<BodyPair>> chunk_pairs(static_cast<std::size_t>(chunk_count));
+#pragma omp parallel for schedule(dynamic, 1) if (static_cast<std::ptrdiff_t>(grains.size()) >= min_parallel_items)
+    for (std::ptrdiff_t i = 0; i < chunk_count; ++i) {
+      std::vector<BodyPair>& out = chunk_pairs[static_cast<std::size_t>(i)];
+      const std::size_t first = static_cast<std::size_t>(i) * chunk;
+      const std::size_t last = std::min(grains.size(), first + chunk);
+      for (std::size_t k = first; k < last; ++k) {
+        const std::size_t begin = out.size();
+        for_each_cell(k, [&](const Cell& c) {
+          const std::size_t bucket = bucket_of(c);
+          for (std::uint32_t e = bucket_start[bucket]; e < bucket_start[bucket + 1]; ++e) {
+            const std::uint32_t j = bucket_grains[e];
+            if (j <= k || !overlap(boxes[k], boxes[j])) continue;
+            if (cell_of(boxes[k].lower.cwiseMax(boxes[j].lower)) != c) continue;  // owner cell only
+            out.push_back({grains[k], grains[j]});
+          }
+        });
+        std::sort(out.begin() + static_cast<std::ptrdiff_t>(begin), out.end());
+      }
+    }
+    for (const auto& part : chunk_pairs) pairs.insert(pairs.end(), part.begin(), part.end());
   }
 
+  std::vector<BodyPair> wall_pairs;
   for (const std::uint32_t wall : walls) {
     if (model.shape_kind[wall] == ShapeKind::plane) {
       // Half-space test: only grains whose bounding sphere comes within the alert distance.
       const Vec3 normal = state.orientation[wall] * model.planes[static_cast<std::size_t>(model.shape_index[wall])].normal;
       for (const std::uint32_t grain : grains) {
         const double gap = normal.dot(state.position[grain] - state.position[wall]) - model.bounding_radius[grain];
-        if (gap < alert_distance) pairs.push_back({std::min(wall, grain), std::max(wall, grain)});
+        if (gap < alert_distance) wall_pairs.push_back({std::min(wall, grain), std::max(wall, grain)});
       }
       continue;
     }
     const Aabb box = wall_box(model, state, wall, margin);
     for (std::size_t k = 0; k < grains.size(); ++k) {
-      if (overlap(box, boxes[k])) pairs.push_back({std::min(wall, grains[k]), std::max(wall, grains[k])});
+      if (overlap(box, boxes[k])) wall_pairs.push_back({std::min(wall, grains[k]), std::max(wall, grains[k])});
     }
   }
-  std::sort(pairs.begin(), pairs.end());  // deterministic whatever the thread count
+  // Grain pairs are sorted already (body ids of grains increase with k); merge the wall pairs in.
+  std::sort(wall_pairs.begin(), wall_pairs.end());
+  const auto middle = static_cast<std::ptrdiff_t>(pairs.size());
+  pairs.insert(pairs.end(), wall_pairs.begin(), wall_pairs.end());
+  std::inplace_merge(pairs.begin(), pairs.begin() + middle, pairs.end());
   return pairs;
 }
 
