@@ -8,6 +8,7 @@
 
 #include "postprocessing/metrics.hpp"
 #include "postprocessing/run_file.hpp"
+#include "simulation/run_control.hpp"
 
 namespace rubble {
 namespace {
@@ -190,6 +191,15 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     last_checkpoint_step = state.step;
   };
 
+  // until = "rest" (run_control.hpp): stop once the mean kinetic energy per grain stayed below the
+  // threshold long enough. A resumed run is taken as already armed (it has moved before).
+  RestDetector rest;
+  rest.criterion = run.rest;
+  rest.armed = control.resume != nullptr;
+  std::size_t grain_count = 0;
+  for (std::size_t b = 0; b < model.body_count(); ++b) grain_count += model.is_grain(b) ? 1 : 0;
+  const double start_time = state.time;
+
   const auto start = Clock::now();
   auto last_progress = start;
   auto last_checkpoint_time = start;
@@ -228,7 +238,9 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     if (!report.solver.converged) ++progress.unconverged_steps;
     progress.wall_seconds += step_seconds;
     const std::int64_t done = state.step - progress.first_step;
-    const bool at_end = state.step == progress.end_step;
+    const bool at_rest = run.until_rest && grain_count > 0 &&
+                         rest.update(state.time, row.kinetic_energy / static_cast<double>(grain_count));
+    const bool at_end = state.step == progress.end_step || at_rest;
     if (done % progress.snapshot_period == 0 || at_end) file->write_snapshot(state, workspace.contacts);
 
     const bool stop = control.stop_requested != nullptr && control.stop_requested->load(std::memory_order_relaxed) != 0;
@@ -244,16 +256,33 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     if (control.progress && (seconds_between(last_progress, now) >= run.output.progress_interval || at_end || stop)) {
       const double elapsed = seconds_between(start, now);
       const auto session_steps = static_cast<double>(state.step - summary.first_step);
-      const double eta = elapsed / session_steps * static_cast<double>(progress.end_step - state.step);
+      double eta = elapsed / session_steps * static_cast<double>(progress.end_step - state.step);
+      std::string eta_text = format_duration(eta);
+      if (run.until_rest) {
+        // The end is the rest time, estimated from the energy's decay; the end time caps it.
+        const std::optional<double> rest_time = rest.estimated_rest_time();
+        eta = eta_seconds(elapsed, start_time, state.time, std::min(rest_time.value_or(run.end_time), run.end_time));
+        eta_text = rest_time ? format_duration(eta) + " (to rest)" : "? (not decaying yet; at most " + format_duration(eta) + ")";
+        if (at_rest) eta_text = "0s (at rest)";
+      }
       *control.progress << fmt::format(
           "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J  elapsed {}  ETA {}\n",
           state.step, progress.end_step, state.time, report.contacts, report.solver.iterations, report.solver.residual,
-          row.kinetic_energy, format_duration(elapsed), format_duration(eta));
+          row.kinetic_energy, format_duration(elapsed), eta_text);
       control.progress->flush();
       last_progress = now;
     }
     if (stop) {
       summary.interrupted = true;
+      break;
+    }
+    if (at_rest) {
+      summary.reached_rest = true;
+      if (control.progress) {
+        *control.progress << fmt::format(
+            "rubble run: at rest at t = {:.6g} s: mean kinetic energy below {:.3g} J per grain for {:.4g} s\n",
+            state.time, run.rest.mean_kinetic_energy, run.rest.duration);
+      }
       break;
     }
   }

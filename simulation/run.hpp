@@ -64,6 +64,7 @@ struct RunSummary {
   std::int64_t snapshots = 0;          ///< snapshots in the run file
   std::filesystem::path run_file;      ///< the HDF5 file written
   bool interrupted = false;            ///< stopped by RunControl::stop_requested before the end
+  bool reached_rest = false;           ///< stopped because the grains were at rest (until = "rest")
   std::filesystem::path last_checkpoint;  ///< the checkpoint written last (empty if none)
   std::uint64_t state_hash = 0;        ///< state_hash() of the final state
 };

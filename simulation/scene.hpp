@@ -5,6 +5,7 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "simulation/run_control.hpp"
 #include "simulation/step.hpp"
 
 namespace rubble {
@@ -21,7 +22,15 @@ struct OutputOptions {
 /// How long to run and what to write, besides the step's own options.
 struct RunOptions {
   StepOptions step{};            ///< integrator, detection, solver, gravity
-  double end_time = 1.0;         ///< s of simulated time
+  double end_time = 1.0;         ///< s of simulated time (with until_rest: the latest end)
+  /// The scene asked for dt = "auto": step.integrator.time_step was set by automatic_time_step().
+  bool automatic_time_step = false;
+  /// [time] until = "rest": also stop as soon as the grains are at rest (RestDetector).
+  bool until_rest = false;
+  /// Threshold and duration of "at rest" (set from the scene even when chosen automatically).
+  RestCriterion rest{};
+  bool automatic_rest_kinetic_energy = true;  ///< rest.mean_kinetic_energy was chosen automatically
+  bool automatic_rest_duration = true;        ///< rest.duration was chosen automatically
   OutputOptions output{};        ///< output folder and cadence
   std::uint64_t seed = 1;        ///< seed of every random generator the scene uses
 };

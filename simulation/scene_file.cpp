@@ -16,6 +16,7 @@
 
 #include "core/units.hpp"
 #include "preprocessing/packing.hpp"
+#include "simulation/run_control.hpp"
 
 namespace rubble {
 
@@ -174,7 +175,11 @@ class TableReader {
         message += " (did you mean \"" + std::string(best) + "\"?)";
       } else {
         message += " (expected one of:";
-        for (std::string_view candidate : allowed) message += " " + std::string(candidate);
+        for (std::string_view candidate : allowed) {
+          // Appended piece by piece: `" " + std::string(...)` trips GCC 12's -Wrestrict false positive.
+          message += ' ';
+          message.append(candidate);
+        }
         message += ")";
       }
       fail(&node, key_path(name), message);
@@ -448,6 +453,7 @@ class SceneParser {
     check_grains_inside_walls();
     check_grains_do_not_overlap();
     build();
+    finish_time();
     return std::move(scene_);
   }
 
@@ -455,21 +461,77 @@ class SceneParser {
   void parse_time() {
     const auto time = root_.optional_table("time");
     if (!time) root_.fail(nullptr, "time", "missing required table [time] (expected dt and end_time, in s)");
-    time->allow_only({"dt", "theta", "end_time"}, "in [time]");
+    time->allow_only({"dt", "theta", "end_time", "until", "rest_kinetic_energy", "rest_duration"}, "in [time]");
     auto& integrator = scene_.run.step.integrator;
-    integrator.time_step = time->number("dt", positive());
+    RunOptions& run = scene_.run;
+    run.automatic_time_step = is_auto(*time, "dt");
+    if (!run.automatic_time_step) integrator.time_step = time->number("dt", positive());
     integrator.theta = time->number_or("theta", 0.5, closed(0.5, 1.0));
-    scene_.run.end_time = time->number("end_time", positive());
+    run.end_time = time->number("end_time", positive());
+    run.until_rest = time->optional_choice("until", {"end_time", "rest"}).value_or("end_time") == "rest";
+    for (const std::string_view key : {"rest_kinetic_energy", "rest_duration"}) {
+      if (time->has(key) && !run.until_rest) {
+        time->fail_key(key, "only used with until = \"rest\" (expected that key too, or no " + std::string(key) + ")");
+      }
+    }
+    run.automatic_rest_kinetic_energy = is_auto(*time, "rest_kinetic_energy") || !time->has("rest_kinetic_energy");
+    if (!run.automatic_rest_kinetic_energy) {
+      run.rest.mean_kinetic_energy = time->number("rest_kinetic_energy", positive());
+    }
+    run.automatic_rest_duration = is_auto(*time, "rest_duration") || !time->has("rest_duration");
+    if (!run.automatic_rest_duration) run.rest.duration = time->number("rest_duration", non_negative());
+    if (!run.automatic_time_step) check_step_count(*time);
+  }
+
+  /// True when `key` holds the string "auto"; any other string is an error (numbers are read later).
+  static bool is_auto(const TableReader& table, std::string_view key) {
+    const toml::node* node = table.get(key);
+    if (!node || !node->is_string()) return false;
+    const std::string value(node->as_string()->get());
+    if (value != "auto") {
+      table.fail(node, table.key_path(key), "expected a finite number or \"auto\", got \"" + value + "\"");
+    }
+    return true;
+  }
+
+  /// dt against end_time: not longer, and not absurdly many steps.
+  void check_step_count(const TableReader& time) const {
+    const auto& integrator = scene_.run.step.integrator;
+    const std::string origin = scene_.run.automatic_time_step ? " (the automatic dt)" : "";
     // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take.
     constexpr double max_steps = 1e12;
     if (scene_.run.end_time / integrator.time_step > max_steps) {
-      time->fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
-                               show_short(scene_.run.end_time / max_steps) + " s), got dt = " +
-                               show(integrator.time_step));
+      time.fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
+                              show_short(scene_.run.end_time / max_steps) + " s), got dt = " +
+                              show(integrator.time_step) + origin);
     }
     if (integrator.time_step > scene_.run.end_time) {
-      time->fail_key("dt", "expected dt <= end_time (" + show(scene_.run.end_time) + " s), got " +
-                               show(integrator.time_step));
+      time.fail_key("dt", "expected dt <= end_time (" + show(scene_.run.end_time) + " s), got " +
+                              show(integrator.time_step) + origin);
+    }
+  }
+
+  /// What depends on the grains: dt = "auto" and the automatic rest criterion (run_control.hpp).
+  void finish_time() {
+    const auto time = root_.optional_table("time");
+    RunOptions& run = scene_.run;
+    if (run.automatic_time_step) {
+      try {
+        run.step.integrator.time_step = automatic_time_step(scene_.model, scene_.state, run.step.gravity).time_step;
+      } catch (const std::invalid_argument& error) {
+        time->fail_key("dt", error.what());
+      }
+      check_step_count(*time);
+    }
+    if (run.until_rest) {
+      const SceneScales scales = scene_scales(scene_.model, scene_.state, run.step.gravity);
+      try {
+        run.rest = automatic_rest_criterion(scales, run.automatic_rest_kinetic_energy ? 0.0 : run.rest.mean_kinetic_energy,
+                                            run.automatic_rest_duration ? 0.0 : run.rest.duration);
+        if (!run.automatic_rest_duration) run.rest.duration = time->number("rest_duration", non_negative());
+      } catch (const std::invalid_argument& error) {
+        time->fail_key(run.automatic_rest_kinetic_energy ? "rest_kinetic_energy" : "rest_duration", error.what());
+      }
     }
   }
 
@@ -1111,9 +1173,19 @@ std::string scene_to_toml(const Scene& scene) {
   out << "seed = " << static_cast<std::int64_t>(run.seed & 0x7FFFFFFFFFFFFFFFULL) << "\n\n";
 
   out << "[time]\n";
-  out << "dt = " << format_number(run.step.integrator.time_step) << "\n";
+  out << "dt = " << (run.automatic_time_step ? std::string("\"auto\"") : format_number(run.step.integrator.time_step))
+      << "\n";
   out << "theta = " << format_number(run.step.integrator.theta) << "\n";
-  out << "end_time = " << format_number(run.end_time) << "\n\n";
+  out << "end_time = " << format_number(run.end_time) << "\n";
+  if (run.until_rest) {
+    out << "until = \"rest\"\n";
+    out << "rest_kinetic_energy = "
+        << (run.automatic_rest_kinetic_energy ? std::string("\"auto\"") : format_number(run.rest.mean_kinetic_energy))
+        << "\n";
+    out << "rest_duration = "
+        << (run.automatic_rest_duration ? std::string("\"auto\"") : format_number(run.rest.duration)) << "\n";
+  }
+  out << "\n";
 
   const SolverOptions& solver = run.step.solver;
   out << "[solver]\n";

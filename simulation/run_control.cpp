@@ -1,0 +1,173 @@
+#include "simulation/run_control.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace rubble {
+
+namespace {
+constexpr double infinity = std::numeric_limits<double>::infinity();
+}  // namespace
+
+SceneScales scene_scales(const Model& model, const State& state, const GravitySettings& gravity) {
+  SceneScales scales;
+  Vec3 weighted = Vec3::Zero();
+  double volume = 0.0;
+  double max_speed = 0.0;
+  scales.min_diameter = infinity;
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_grain(b) || model.is_fixed(b)) continue;
+    ++scales.grains;
+    scales.total_mass += model.mass[b];
+    weighted += model.mass[b] * state.position[b];
+    volume += model.volume[b];
+    scales.min_diameter = std::min(scales.min_diameter, 2.0 * model.bounding_radius[b]);
+    max_speed = std::max(max_speed, state.velocity[b].norm());
+  }
+  if (scales.grains == 0) {
+    scales.min_diameter = 0.0;
+    scales.characteristic_time = infinity;
+    return scales;
+  }
+  scales.mean_mass = scales.total_mass / static_cast<double>(scales.grains);
+  scales.mean_density = volume > 0.0 ? scales.total_mass / volume : 0.0;
+  const Vec3 centre = weighted / scales.total_mass;
+  double low = infinity;
+  double high = -infinity;
+  const Vec3 down = gravity.kind == GravitySettings::Kind::uniform && gravity.acceleration.norm() > 0.0
+                        ? Vec3(gravity.acceleration.normalized())
+                        : Vec3::UnitZ();
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_grain(b) || model.is_fixed(b)) continue;
+    scales.cloud_radius = std::max(scales.cloud_radius, (state.position[b] - centre).norm() + model.bounding_radius[b]);
+    low = std::min(low, down.dot(state.position[b]));
+    high = std::max(high, down.dot(state.position[b]));
+  }
+
+  switch (gravity.kind) {
+    case GravitySettings::Kind::self: {
+      // Escape velocity from the cloud's edge, sqrt(2GM/R): no grain falling from rest inside the
+      // cloud gets faster (the potential well of a uniform sphere is 3GM/2R deep at its centre,
+      // which gives only sqrt(GM/R)). Characteristic time 1/sqrt(G rho) (seed 001).
+      const double G = gravity.self_gravity.G;
+      scales.reference_velocity = std::sqrt(2.0 * G * scales.total_mass / scales.cloud_radius);
+      scales.characteristic_time = scales.mean_density > 0.0 ? 1.0 / std::sqrt(G * scales.mean_density) : infinity;
+      break;
+    }
+    case GravitySettings::Kind::uniform: {
+      // A grain falling the height of the deposit (plus one grain) from rest: v = sqrt(2 g H),
+      // in t = sqrt(2 H / g).
+      const double g = gravity.acceleration.norm();
+      const double height = (high - low) + scales.min_diameter;
+      scales.reference_velocity = std::max(std::sqrt(2.0 * g * height), max_speed);
+      scales.characteristic_time = g > 0.0 ? std::sqrt(2.0 * height / g) : infinity;
+      break;
+    }
+    case GravitySettings::Kind::none:
+      scales.reference_velocity = max_speed;
+      scales.characteristic_time = max_speed > 0.0 ? scales.min_diameter / max_speed : infinity;
+      break;
+  }
+  if (gravity.kind != GravitySettings::Kind::none) {
+    scales.reference_velocity = std::max(scales.reference_velocity, max_speed);
+  }
+  return scales;
+}
+
+TimeStepChoice automatic_time_step(const Model& model, const State& state, const GravitySettings& gravity) {
+  TimeStepChoice choice;
+  choice.scales = scene_scales(model, state, gravity);
+  const SceneScales& s = choice.scales;
+  const double by_travel =
+      s.reference_velocity > 0.0 ? auto_step_travel_fraction * s.min_diameter / s.reference_velocity : infinity;
+  const double by_time = auto_step_time_fraction * s.characteristic_time;
+  if (!std::isfinite(by_travel) && !std::isfinite(by_time)) {
+    throw std::invalid_argument(
+        "cannot choose dt automatically: the scene has no gravity and no initial velocity, so nothing sets a time "
+        "scale (give dt in s)");
+  }
+  if (!(std::min(by_travel, by_time) > 0.0)) {
+    throw std::invalid_argument("cannot choose dt automatically: the scene's grains give a zero time step");
+  }
+  choice.time_step = std::min(by_travel, by_time);
+  choice.rule = by_travel <= by_time ? "travel" : "time";
+  return choice;
+}
+
+RestCriterion automatic_rest_criterion(const SceneScales& scales, double threshold, double duration) {
+  RestCriterion criterion;
+  if (threshold > 0.0) {
+    criterion.mean_kinetic_energy = threshold;
+  } else {
+    const double reference = 0.5 * scales.mean_mass * scales.reference_velocity * scales.reference_velocity;
+    if (!(reference > 0.0) || !std::isfinite(reference)) {
+      throw std::invalid_argument(
+          "cannot choose rest_kinetic_energy automatically: the scene has no gravity and no motion (give it in J)");
+    }
+    criterion.mean_kinetic_energy = auto_rest_energy_fraction * reference;
+  }
+  if (duration > 0.0) {
+    criterion.duration = duration;
+  } else {
+    if (!std::isfinite(scales.characteristic_time)) {
+      throw std::invalid_argument(
+          "cannot choose rest_duration automatically: the scene has no time scale (give it in s)");
+    }
+    criterion.duration = auto_rest_duration_fraction * scales.characteristic_time;
+  }
+  return criterion;
+}
+
+bool RestDetector::update(double time, double mean_kinetic_energy) {
+  const double energy = std::max(mean_kinetic_energy, 1e-300);  // log of it below
+  // Decay-rate history: keep samples spaced by >= window/16 over the last window.
+  const double window = decay_window > 0.0 ? decay_window : std::max(0.1 * time, 1e-300);
+  if (history.empty() || time - history.back().first >= window / 16.0) history.emplace_back(time, std::log(energy));
+  while (history.size() > 2 && time - history[1].first >= window) history.pop_front();
+
+  if (mean_kinetic_energy > criterion.mean_kinetic_energy) {
+    armed = true;
+    below_since.reset();
+    return false;
+  }
+  if (!armed) return false;
+  if (!below_since) below_since = time;
+  return time - *below_since >= criterion.duration;
+}
+
+std::optional<double> RestDetector::estimated_rest_time() const {
+  if (!armed || history.size() < 3) return std::nullopt;
+  const auto& [t_now, log_now] = history.back();
+  if (below_since) return *below_since + criterion.duration;
+  // Least-squares slope of ln E against t over the history: E decays as exp(-t/tau), tau = -1/slope.
+  double mean_t = 0.0;
+  double mean_y = 0.0;
+  for (const auto& [t, y] : history) {
+    mean_t += t;
+    mean_y += y;
+  }
+  const auto n = static_cast<double>(history.size());
+  mean_t /= n;
+  mean_y /= n;
+  double stt = 0.0;
+  double sty = 0.0;
+  for (const auto& [t, y] : history) {
+    stt += (t - mean_t) * (t - mean_t);
+    sty += (t - mean_t) * (y - mean_y);
+  }
+  if (!(stt > 0.0)) return std::nullopt;
+  const double slope = sty / stt;
+  if (!(slope < 0.0)) return std::nullopt;  // not decaying (still rising, or a plateau above the threshold)
+  const double remaining_decades = log_now - std::log(criterion.mean_kinetic_energy);
+  return t_now + std::max(0.0, remaining_decades) / -slope + criterion.duration;
+}
+
+double eta_seconds(double elapsed_wall, double start_time, double time_now, double target_time) {
+  const double done = time_now - start_time;
+  if (!(done > 0.0) || !(elapsed_wall > 0.0)) return -1.0;
+  return elapsed_wall / done * std::max(0.0, target_time - time_now);
+}
+
+}  // namespace rubble
