@@ -1,0 +1,191 @@
+// simulation/checkpoint.cpp: the file format (bit-exact round trip, CRC-64 against its published
+// check value, every truncation and every damaged byte rejected) and the folder (atomic write,
+// newest two kept, newest valid one loaded).
+#include "simulation/checkpoint.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <string>
+
+namespace rubble {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::span<const std::byte> as_bytes(const std::string& text) {
+  return {reinterpret_cast<const std::byte*>(text.data()), text.size()};
+}
+
+/// A checkpoint with every field set to something distinct (including awkward doubles).
+Checkpoint sample_checkpoint(std::int64_t step = 1234) {
+  Checkpoint c;
+  c.scene_text = "name = \"sample\"\n[time]\ndt = 1e-4\nend_time = 1.0\n";
+  c.scene_source = "/some/where/sample.toml";
+  c.end_time = 1.0;
+  c.seed = 0xDEADBEEFCAFEF00DULL;
+  c.state.resize(3);
+  c.state.time = 0.1234 + 1e-17;
+  c.state.step = step;
+  for (std::size_t b = 0; b < 3; ++b) {
+    const double x = static_cast<double>(b) + 0.1;
+    c.state.position[b] = Vec3(x, -x / 3.0, std::nextafter(x, 10.0));
+    c.state.orientation[b] = Quat(std::cos(x), std::sin(x), 0.0, 0.0);
+    c.state.velocity[b] = Vec3(1e-300, -0.0, x * 1e300);
+    c.state.angular_velocity[b] = Vec3(std::numeric_limits<double>::denorm_min(), 2.0, -3.0);
+  }
+  Contact contact;
+  contact.id = ContactId{0, 2, 7, 9};
+  contact.point = Vec3(0.5, 0.25, 0.125);
+  contact.frame = frame_from_normal(Vec3(0.0, 0.6, 0.8));
+  contact.gap = -1e-6;
+  contact.arm_a = Vec3(1, 2, 3);
+  contact.arm_b = Vec3(-1, -2, -3);
+  contact.delassus = Mat3::Identity() * 3.5;
+  contact.delassus(0, 2) = 0.25;
+  contact.friction_coefficient = 0.3;
+  contact.normal_restitution = 0.1;
+  contact.normal_velocity_before = -0.2;
+  contact.normal_velocity_target = 0.02;
+  contact.impulse = Vec3(1e-3, -2e-4, 3e-5);
+  contact.status = ContactStatus::sliding;
+  c.contacts = {contact, contact};
+  c.contacts[1].id.body_a = 1;
+  c.contacts[1].status = ContactStatus::sticking;
+  c.detection_memory.pairs = {BodyPair{0, 1}, BodyPair{1, 2}};
+  c.detection_memory.common_normals = {Vec3(0, 0, 1), Vec3(0.6, 0.8, 0)};
+  c.progress = RunProgress{0, 5000, 50, step, 25, 4321.0, 7.5e-5, 3, 12.5};
+  return c;
+}
+
+fs::path fresh_folder(const std::string& name) {
+  const fs::path folder =
+      fs::temp_directory_path() / ("rubble_test_checkpoint_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(folder);
+  return folder;
+}
+
+// The check value of CRC-64/XZ (the catalogue of parametrised CRC algorithms, Greg Cook): the
+// CRC of the nine ASCII bytes "123456789" is 0x995DC9BBDF1939FA.
+TEST(Crc64, MatchesThePublishedCheckValue) {
+  EXPECT_EQ(crc64(as_bytes("123456789")), 0x995DC9BBDF1939FAULL);
+  EXPECT_EQ(crc64({}), 0u);
+}
+
+TEST(Crc64, ChainsAcrossPieces) {
+  const std::string text = "rubble-pile accretion runs for hours";
+  EXPECT_EQ(crc64(as_bytes(text.substr(10)), crc64(as_bytes(text.substr(0, 10)))), crc64(as_bytes(text)));
+}
+
+TEST(CheckpointFormat, RoundTripIsBitExact) {
+  const Checkpoint original = sample_checkpoint();
+  const std::vector<std::byte> bytes = serialize_checkpoint(original);
+  const Checkpoint back = deserialize_checkpoint(bytes, "memory");
+  EXPECT_EQ(serialize_checkpoint(back), bytes);
+  EXPECT_EQ(back.scene_text, original.scene_text);
+  EXPECT_EQ(back.scene_source, original.scene_source);
+  EXPECT_EQ(back.seed, original.seed);
+  EXPECT_EQ(state_hash(back.state), state_hash(original.state));
+  EXPECT_EQ(std::signbit(back.state.velocity[0].y()), true);  // -0.0 kept
+  ASSERT_EQ(back.contacts.size(), 2u);
+  EXPECT_EQ(back.contacts[0].id, original.contacts[0].id);
+  EXPECT_EQ(back.contacts[0].frame, original.contacts[0].frame);
+  EXPECT_EQ(back.contacts[0].delassus, original.contacts[0].delassus);
+  EXPECT_EQ(back.contacts[0].impulse, original.contacts[0].impulse);
+  EXPECT_EQ(back.contacts[1].status, ContactStatus::sticking);
+  EXPECT_EQ(back.detection_memory.pairs, original.detection_memory.pairs);
+  EXPECT_EQ(back.detection_memory.common_normals, original.detection_memory.common_normals);
+  EXPECT_EQ(back.progress.snapshot_period, 50);
+  EXPECT_EQ(back.progress.iteration_sum, 4321.0);
+}
+
+TEST(CheckpointFormat, EveryTruncationIsRejected) {
+  const std::vector<std::byte> bytes = serialize_checkpoint(sample_checkpoint());
+  for (std::size_t length = 0; length < bytes.size(); ++length) {
+    EXPECT_THROW(deserialize_checkpoint(std::span(bytes).first(length), "cut"), CheckpointError) << length;
+  }
+}
+
+TEST(CheckpointFormat, EveryDamagedByteIsRejected) {
+  const std::vector<std::byte> bytes = serialize_checkpoint(sample_checkpoint());
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    std::vector<std::byte> damaged = bytes;
+    damaged[i] ^= std::byte{0x10};
+    EXPECT_THROW(deserialize_checkpoint(damaged, "damaged"), CheckpointError) << "byte " << i;
+  }
+}
+
+TEST(CheckpointFormat, MessagesNameTheFileAndTheProblem) {
+  std::vector<std::byte> bytes = serialize_checkpoint(sample_checkpoint());
+  bytes[bytes.size() / 2] ^= std::byte{1};
+  try {
+    deserialize_checkpoint(bytes, "run/checkpoints/step-000000001234.ckpt");
+    FAIL() << "no error";
+  } catch (const CheckpointError& e) {
+    EXPECT_NE(std::string(e.what()).find("run/checkpoints/step-000000001234.ckpt: checksum mismatch"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(deserialize_checkpoint(as_bytes("definitely not a checkpoint, but long enough"), "x"), CheckpointError);
+}
+
+TEST(StateHash, ChangesWithOneBit) {
+  State a = sample_checkpoint().state;
+  State b = a;
+  EXPECT_EQ(state_hash(a), state_hash(b));
+  b.position[2].z() = std::nextafter(b.position[2].z(), 0.0);
+  EXPECT_NE(state_hash(a), state_hash(b));
+}
+
+TEST(CheckpointFolder, KeepsTheNewestTwoAndNoTemporaryFile) {
+  const fs::path folder = fresh_folder("keep");
+  fs::create_directories(folder);
+  std::ofstream(folder / "step-000000000005.ckpt.tmp") << "left by a killed write";
+  for (std::int64_t step : {10, 20, 30}) {
+    const fs::path written = write_checkpoint(folder, sample_checkpoint(step));
+    EXPECT_EQ(written.filename().string(), "step-0000000000" + std::to_string(step) + ".ckpt");
+  }
+  const std::vector<fs::path> files = list_checkpoints(folder);
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_EQ(files[0].filename(), "step-000000000030.ckpt");
+  EXPECT_EQ(files[1].filename(), "step-000000000020.ckpt");
+  std::size_t entries = 0;
+  for ([[maybe_unused]] const auto& entry : fs::directory_iterator(folder)) ++entries;
+  EXPECT_EQ(entries, 2u);  // the stray temporary is gone too
+  EXPECT_EQ(read_checkpoint(files[0]).state.step, 30);
+  fs::remove_all(folder);
+}
+
+TEST(CheckpointFolder, DamagedNewestFallsBackToThePreviousOne) {
+  const fs::path folder = fresh_folder("fallback");
+  write_checkpoint(folder, sample_checkpoint(10));
+  const fs::path newest = write_checkpoint(folder, sample_checkpoint(20));
+  fs::resize_file(newest, fs::file_size(newest) / 2);  // as if the machine died mid-write
+  const LoadedCheckpoint loaded = load_newest_checkpoint(folder);
+  EXPECT_EQ(loaded.checkpoint.state.step, 10);
+  EXPECT_EQ(loaded.file.filename(), "step-000000000010.ckpt");
+  ASSERT_EQ(loaded.rejected.size(), 1u);
+  EXPECT_NE(loaded.rejected[0].find("truncated"), std::string::npos) << loaded.rejected[0];
+  fs::remove_all(folder);
+}
+
+TEST(CheckpointFolder, NoUsableCheckpointIsAnError) {
+  const fs::path folder = fresh_folder("none");
+  EXPECT_THROW(load_newest_checkpoint(folder), CheckpointError);
+  fs::create_directories(folder);
+  std::ofstream(folder / "step-000000000001.ckpt") << "garbage";
+  try {
+    load_newest_checkpoint(folder);
+    FAIL() << "no error";
+  } catch (const CheckpointError& e) {
+    EXPECT_NE(std::string(e.what()).find("no usable checkpoint"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("step-000000000001.ckpt"), std::string::npos) << e.what();
+  }
+  fs::remove_all(folder);
+}
+
+}  // namespace
+}  // namespace rubble

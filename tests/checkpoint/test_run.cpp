@@ -1,0 +1,253 @@
+// The restart paths of simulation/run.cpp: a run resumed from any of its checkpoints, or stopped
+// by the stop flag and resumed, ends bit for bit where the uninterrupted run ends, with the same
+// run file series and snapshots; numerical failures name the step, the body and the stage and
+// leave the checkpoints intact.
+#include "simulation/run.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <limits>
+
+#include "postprocessing/run_reader.hpp"
+#include "simulation/scene_file.hpp"
+
+namespace rubble {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Twelve spheres falling into an open box under gravity: contacts, friction and warm starts
+// within the 400 steps (impacts start around step 150).
+constexpr const char* scene_text = R"(
+name = "restart"
+seed = 7
+[time]
+dt = 1e-4
+end_time = 0.04
+[gravity]
+type = "uniform"
+acceleration = [0.0, 0.0, -9.81]
+[output]
+snapshot_every_steps = 25
+progress_interval = 1000.0
+[[materials]]
+name = "glass"
+density = 2500.0
+[[contact_laws]]
+materials = ["glass", "glass"]
+friction = 0.4
+restitution = 0.2
+[[walls]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[walls]]
+type = "plane"
+point = [-0.1, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+[[walls]]
+type = "plane"
+point = [0.1, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+[[generators]]
+type = "box_deposit"
+count = 12
+radius_min = 0.02
+radius_max = 0.03
+region_min = [-0.1, -0.1, 0.0]
+region_max = [0.1, 0.1, 0.2]
+velocity = [0.3, 0.0, -1.0]
+)";
+
+Scene scene_in(const std::string& name) {
+  Scene scene = parse_scene(scene_text, "restart.toml");
+  scene.run.output.directory =
+      (fs::temp_directory_path() / ("rubble_test_run_" + name + "_" + std::to_string(::getpid()))).string();
+  fs::remove_all(scene.run.output.directory);
+  return scene;
+}
+
+RunControl control_for() {
+  RunControl control;
+  control.scene_text = scene_text;
+  control.scene_source = "restart.toml";
+  control.checkpoint_interval = 0.0;  // by step count only: reproducible
+  return control;
+}
+
+/// Reads what must not depend on interruptions: every series column but the wall times, and
+/// every snapshot's state hash and contact impulses.
+struct RunRecord {
+  RunSeries series;
+  std::vector<std::uint64_t> snapshot_hashes;
+  std::vector<std::int64_t> snapshot_steps;
+};
+RunRecord read_record(const fs::path& file) {
+  const RunReader reader = RunReader::open(file);
+  RunRecord record;
+  record.series = reader.read_series();
+  for (std::size_t k = 0; k < reader.snapshot_count(); ++k) {
+    const RunSnapshot snapshot = reader.read_snapshot(k);
+    record.snapshot_hashes.push_back(state_hash(snapshot.state));
+    record.snapshot_steps.push_back(snapshot.state.step);
+  }
+  return record;
+}
+void expect_same_record(const RunRecord& a, const RunRecord& b) {
+  EXPECT_EQ(a.series.step, b.series.step);
+  EXPECT_EQ(a.series.time, b.series.time);
+  EXPECT_EQ(a.series.kinetic_energy, b.series.kinetic_energy);
+  EXPECT_EQ(a.series.contacts, b.series.contacts);
+  EXPECT_EQ(a.series.iterations, b.series.iterations);
+  EXPECT_EQ(a.series.residual, b.series.residual);
+  EXPECT_EQ(a.snapshot_steps, b.snapshot_steps);
+  EXPECT_EQ(a.snapshot_hashes, b.snapshot_hashes);
+}
+
+TEST(Restart, FromEveryCheckpointEndsBitIdentical) {
+  const Scene reference_scene = scene_in("reference");
+  const RunSummary reference = run_scene(reference_scene, control_for());
+  ASSERT_EQ(reference.final_step, 400);
+  const RunRecord reference_record = read_record(reference.run_file);
+  ASSERT_EQ(reference_record.series.step.size(), 400u);
+  ASSERT_GT(reference_record.series.contacts.back(), 0) << "the scene must have contacts to test the warm start";
+
+  // A run that kept a checkpoint every 40 steps; its run file, complete, is what a run killed
+  // after its last checkpoint leaves (and more: every later row must be cut away on resume).
+  const Scene scene = scene_in("checkpointed");
+  RunControl control = control_for();
+  control.checkpoint_every_steps = 40;
+  control.checkpoints_kept = 100;
+  const RunSummary full = run_scene(scene, control);
+  EXPECT_EQ(full.state_hash, reference.state_hash);
+  const std::vector<fs::path> checkpoints = list_checkpoints(checkpoint_folder(scene.run.output.directory));
+  ASSERT_EQ(checkpoints.size(), 10u);
+
+  for (const fs::path& file : checkpoints) {
+    const Checkpoint checkpoint = read_checkpoint(file);
+    SCOPED_TRACE(file.filename().string());
+    const Scene resumed_scene = [&] {
+      Scene s = parse_scene(checkpoint.scene_text, checkpoint.scene_source);
+      s.run.output.directory = scene.run.output.directory;
+      return s;
+    }();
+    RunControl resume = control;
+    resume.resume = &checkpoint;
+    const RunSummary summary = run_scene(resumed_scene, resume);
+    EXPECT_EQ(summary.first_step, checkpoint.state.step);
+    EXPECT_EQ(summary.state_hash, reference.state_hash);
+    EXPECT_EQ(summary.mean_iterations, reference.mean_iterations);
+    EXPECT_EQ(summary.max_residual, reference.max_residual);
+    expect_same_record(read_record(summary.run_file), reference_record);
+  }
+}
+
+TEST(Restart, StopFlagWritesACheckpointAndResumesIdentically) {
+  const RunSummary reference = run_scene(scene_in("stop_reference"), control_for());
+  const Scene scene = scene_in("stop");
+  RunControl control = control_for();
+  const std::atomic<int> stop{15};  // as if SIGTERM came during the first step
+  control.stop_requested = &stop;
+  const RunSummary stopped = run_scene(scene, control);
+  EXPECT_TRUE(stopped.interrupted);
+  EXPECT_EQ(stopped.final_step, 1);
+  ASSERT_FALSE(stopped.last_checkpoint.empty());
+
+  const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
+  EXPECT_EQ(loaded.checkpoint.state.step, 1);
+  RunControl resume = control_for();
+  resume.resume = &loaded.checkpoint;
+  const RunSummary finished = run_scene(scene, resume);
+  EXPECT_FALSE(finished.interrupted);
+  EXPECT_EQ(finished.state_hash, reference.state_hash);
+  expect_same_record(read_record(finished.run_file), read_record(reference.run_file));
+}
+
+TEST(Restart, LongerEndTimeExtendsTheRunWithTheSameSnapshotCadence) {
+  Scene scene = scene_in("extend");
+  scene.run.output.snapshot_every_steps = 0;  // 100 snapshots per run: the period comes from the first session
+  scene.run.end_time = 0.02;                  // 200 steps: period 2
+  const RunSummary first = run_scene(scene, control_for());
+  EXPECT_EQ(first.snapshots, 101);
+  const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
+  EXPECT_EQ(loaded.checkpoint.progress.snapshot_period, 2);
+  scene.run.end_time = 0.04;
+  RunControl resume = control_for();
+  resume.resume = &loaded.checkpoint;
+  const RunSummary extended = run_scene(scene, resume);
+  EXPECT_EQ(extended.final_step, 400);
+  EXPECT_EQ(extended.snapshots, 201);  // still every 2 steps
+}
+
+TEST(Restart, ACheckpointOfAnotherSceneIsRefused) {
+  const Scene scene = scene_in("mismatch");
+  run_scene(scene, control_for());
+  Checkpoint checkpoint = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory)).checkpoint;
+  checkpoint.state.resize(3);
+  RunControl resume = control_for();
+  resume.resume = &checkpoint;
+  EXPECT_THROW(run_scene(scene, resume), CheckpointError);
+}
+
+/// Runs `scene` and returns the NumericalFailure's message ("" if none).
+std::string failure_of(const Scene& scene, const RunControl& control) {
+  try {
+    run_scene(scene, control);
+  } catch (const NumericalFailure& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(NumericalFailure, RunawaySpeedNamesStepBodyStageAndKeepsTheCheckpoints) {
+  const Scene scene = scene_in("runaway");
+  RunControl control = control_for();
+  control.checkpoint_every_steps = 10;
+  // Every grain starts at (0.3, 0, -1) m/s (the generator's velocity) and falls freely:
+  // |v|^2 = 0.09 + (1 + g t)^2 passes 1.1^2 at t = 5.94 ms, so the free velocity of step 60 is
+  // the first over the bound, body 0 the first grain checked.
+  control.max_speed = 1.1;
+  const std::string message = failure_of(scene, control);
+  EXPECT_NE(message.find("stage free_velocity"), std::string::npos) << message;
+  EXPECT_NE(message.find("runaway speed"), std::string::npos) << message;
+  EXPECT_NE(message.find("body 0"), std::string::npos) << message;
+  EXPECT_NE(message.find("step "), std::string::npos) << message;
+  const LoadedCheckpoint last = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
+  EXPECT_TRUE(last.rejected.empty());
+  EXPECT_NE(message.find("step 60 "), std::string::npos) << message;
+  EXPECT_EQ(last.checkpoint.state.step, 50);  // untouched by the failure
+  EXPECT_NE(message.find("last checkpoint (step 50)"), std::string::npos) << message;
+}
+
+TEST(NumericalFailure, NonFiniteGravityIsTracedToTheExternalForces) {
+  Scene scene = scene_in("nan_gravity");
+  scene.run.step.gravity.acceleration.z() = std::numeric_limits<double>::quiet_NaN();
+  const std::string message = failure_of(scene, control_for());
+  EXPECT_NE(message.find("step 1 "), std::string::npos) << message;
+  EXPECT_NE(message.find("stage external_forces"), std::string::npos) << message;
+  EXPECT_NE(message.find("last checkpoint (none)"), std::string::npos) << message;
+}
+
+TEST(NumericalFailure, NonFiniteVelocityIsTracedToTheFreeVelocity) {
+  Scene scene = scene_in("nan_velocity");
+  scene.state.velocity[3].x() = std::numeric_limits<double>::infinity();
+  const std::string message = failure_of(scene, control_for());
+  EXPECT_NE(message.find("stage free_velocity: body 3"), std::string::npos) << message;
+}
+
+TEST(NumericalFailure, DefaultBoundIsTheBoundingRadiusPerStep) {
+  Scene scene = scene_in("radius_bound");
+  // 0.03 m / 1e-4 s = 300 m/s at most for the largest grain; 1000 m/s is caught at step 1.
+  scene.state.velocity[5] = Vec3(0.0, 1000.0, 0.0);
+  const std::string message = failure_of(scene, control_for());
+  EXPECT_NE(message.find("body 5: free velocity: runaway speed"), std::string::npos) << message;
+  RunControl unchecked = control_for();
+  unchecked.max_speed = -1.0;  // disabled: the grain flies off through the open side
+  scene.run.end_time = 0.001;
+  EXPECT_EQ(failure_of(scene, unchecked), "");
+}
+
+}  // namespace
+}  // namespace rubble
