@@ -18,5 +18,7 @@ void register_run_command(CLI::App& app);
 void register_gravity_command(CLI::App& app);
 /// `rubble post RUN.h5 ...`: metrics, plots and ParaView files of a run.
 void register_post_command(CLI::App& app);
+/// `rubble fclib FILE.hdf5 ...`: solves an FCLib local frictional-contact problem by NLGS.
+void register_fclib_command(CLI::App& app);
 
 }  // namespace rubble::apps

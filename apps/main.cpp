@@ -16,6 +16,9 @@ int main(int argc, char** argv) {
 #ifdef RUBBLE_HAS_POST_COMMAND
   rubble::apps::register_post_command(app);
 #endif
+#ifdef RUBBLE_HAS_FCLIB_COMMAND
+  rubble::apps::register_fclib_command(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::RuntimeError& e) {

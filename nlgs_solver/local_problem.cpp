@@ -1,6 +1,9 @@
 #include "nlgs_solver/local_problem.hpp"
 
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -51,7 +54,203 @@ struct ExplicitProblem {
   void apply_impulse_change(std::size_t, const Vec3&) {}
 };
 
+using SparseColumnMajor = Eigen::SparseMatrix<double>;
+
+/// rho_alpha = 1 / W_nn,alpha: puts rho u in impulse units, so both halves of the Alart-Curnier
+/// function (and of its Jacobian) are of one scale whatever the masses.
+std::vector<double> normal_scalings(const LocalProblem& p) {
+  std::vector<double> rho(p.contact_count(), 1.0);
+  for (std::size_t k = 0; k < p.contact_count(); ++k) {
+    const std::size_t row = 3 * k;
+    for (int e = p.W.row_start[row]; e < p.W.row_start[row + 1]; ++e) {
+      if (static_cast<std::size_t>(p.W.column[static_cast<std::size_t>(e)]) == row &&
+          p.W.value[static_cast<std::size_t>(e)] > 0.0) {
+        rho[k] = 1.0 / p.W.value[static_cast<std::size_t>(e)];
+      }
+    }
+  }
+  return rho;
+}
+
+/// The Alart-Curnier function F(r) and, when `jacobian` is given, one element of its generalized
+/// (Clarke) Jacobian as triplets: per contact, with a = r_n - rho u_n, b = r_T - rho u_T,
+/// R = mu max(a, 0) and du/dr = W,
+///   a <= 0 (open):              F = r,                          dF = I
+///   a > 0, |b| <= R (sticking): F = rho u,                      dF = rho W_alpha
+///   a > 0, |b| > R (sliding):   F_n = rho u_n,  F_T = r_T - R b/|b|,
+///                               dF_T = dr_T - mu bhat da - (R/|b|)(I - bhat bhat^T) db.
+double alart_curnier(const LocalProblem& p, const std::vector<double>& rho, const std::vector<double>& r,
+                     const std::vector<double>& u, std::vector<double>& F,
+                     std::vector<Eigen::Triplet<double>>* jacobian) {
+  const std::size_t n = p.contact_count();
+  F.assign(3 * n, 0.0);
+  double squared = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i0 = 3 * k;
+    const double mu = p.mu[k];
+    const double a = r[i0] - rho[k] * u[i0];
+    const int c0 = static_cast<int>(i0);
+    auto add_w_row = [&](int out_row, std::size_t w_row, double factor) {
+      for (int e = p.W.row_start[w_row]; e < p.W.row_start[w_row + 1]; ++e) {
+        jacobian->emplace_back(out_row, p.W.column[static_cast<std::size_t>(e)],
+                               factor * p.W.value[static_cast<std::size_t>(e)]);
+      }
+    };
+    if (a <= 0.0) {
+      for (int i = 0; i < 3; ++i) {
+        F[i0 + static_cast<std::size_t>(i)] = r[i0 + static_cast<std::size_t>(i)];
+        if (jacobian) jacobian->emplace_back(c0 + i, c0 + i, 1.0);
+      }
+    } else {
+      F[i0] = rho[k] * u[i0];
+      if (jacobian) add_w_row(c0, i0, rho[k]);
+      const double radius = mu * a;
+      const double b1 = r[i0 + 1] - rho[k] * u[i0 + 1], b2 = r[i0 + 2] - rho[k] * u[i0 + 2];
+      const double b_norm = std::hypot(b1, b2);
+      if (b_norm <= radius) {
+        F[i0 + 1] = rho[k] * u[i0 + 1];
+        F[i0 + 2] = rho[k] * u[i0 + 2];
+        if (jacobian) {
+          add_w_row(c0 + 1, i0 + 1, rho[k]);
+          add_w_row(c0 + 2, i0 + 2, rho[k]);
+        }
+      } else {
+        const double h1 = b1 / b_norm, h2 = b2 / b_norm;
+        const double s = radius / b_norm;
+        F[i0 + 1] = r[i0 + 1] - radius * h1;
+        F[i0 + 2] = r[i0 + 2] - radius * h2;
+        if (jacobian) {
+          // P = s (I - bhat bhat^T); dF_T = dr_T - mu bhat (dr_n - rho dU_n) - P (dr_T - rho dU_T).
+          const double P[2][2] = {{s * (1.0 - h1 * h1), -s * h1 * h2}, {-s * h1 * h2, s * (1.0 - h2 * h2)}};
+          const double h[2] = {h1, h2};
+          for (int i = 0; i < 2; ++i) {
+            const int out = c0 + 1 + i;
+            jacobian->emplace_back(out, c0, -mu * h[i]);
+            for (int j = 0; j < 2; ++j) jacobian->emplace_back(out, c0 + 1 + j, (i == j ? 1.0 : 0.0) - P[i][j]);
+            add_w_row(out, i0, mu * h[i] * rho[k]);
+            for (int j = 0; j < 2; ++j) add_w_row(out, i0 + 1 + static_cast<std::size_t>(j), P[i][j] * rho[k]);
+          }
+        }
+      }
+    }
+    for (int i = 0; i < 3; ++i) squared += F[i0 + static_cast<std::size_t>(i)] * F[i0 + static_cast<std::size_t>(i)];
+  }
+  return squared;
+}
+
+/// What one polish attempt did.
+struct PolishResult {
+  int iterations = 0;       ///< Newton steps taken
+  bool improved = false;    ///< r holds a better iterate (lower FCLib error) than on entry
+};
+
+/// One damped Gauss-Newton (Levenberg-Marquardt) step on the Alart-Curnier function at r:
+/// (J^T J + lambda I) d = -J^T F with lambda = damping x mean diagonal of J^T J. Returns false
+/// when the factorization fails or d is not a descent direction of psi = |F|^2 / 2.
+bool levenberg_marquardt_step(const LocalProblem& p, const std::vector<double>& rho, const std::vector<double>& r,
+                              const std::vector<double>& u, double damping, Eigen::VectorXd& step, double& psi,
+                              double& slope) {
+  const auto m = static_cast<Eigen::Index>(3 * p.contact_count());
+  std::vector<double> F;
+  std::vector<Eigen::Triplet<double>> triplets;
+  psi = 0.5 * alart_curnier(p, rho, r, u, F, &triplets);
+  SparseColumnMajor J(m, m);
+  J.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::VectorXd gradient = J.transpose() * Eigen::Map<const Eigen::VectorXd>(F.data(), m);
+  SparseColumnMajor normal_matrix = SparseColumnMajor(J.transpose()) * J;
+  const double lambda = damping * normal_matrix.diagonal().sum() / static_cast<double>(m);
+  for (Eigen::Index d = 0; d < m; ++d) normal_matrix.coeffRef(d, d) += lambda;
+  // The pattern of J follows the contacts' regimes, so the symbolic analysis is redone each step.
+  Eigen::SimplicialLDLT<SparseColumnMajor> factorization(normal_matrix);
+  if (factorization.info() != Eigen::Success) return false;
+  step = factorization.solve(-gradient);
+  slope = gradient.dot(step);
+  return std::isfinite(slope) && slope < 0.0;
+}
+
+/// Levenberg-Marquardt on the Alart-Curnier function from the sweeps' iterate. The damping
+/// starts at `polish_initial_damping` and drops tenfold after every step, so the steps become
+/// Gauss-Newton steps, which converge fast even where the solution r is not unique
+/// (rank-deficient W, four contacts per box face: Yamashita & Fukushima 2001 need a local error
+/// bound, not a nonsingular Jacobian). psi = |F|^2/2 is not smooth where a contact changes
+/// regime, and a monotone line search stalls at those kinks (seen on the BoxesStack problem),
+/// so full steps are taken even when psi grows, for at most `watchdog` steps in a row
+/// (Chamberlain et al. 1982's watchdog); then the walk restarts from the best iterate with an
+/// Armijo backtracking step and ten times the damping. Keeps the iterate of lowest FCLib error.
+PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& options, std::vector<double>& r,
+                           std::vector<double>& u, double& error) {
+  constexpr int watchdog = 4;
+  PolishResult result;
+  const std::size_t m = 3 * p.contact_count();
+  const std::vector<double> rho = normal_scalings(p);
+  std::vector<double> trial_r(m), trial_u(m), scratch;
+  double best_error = error;
+  std::vector<double> best_r = r, best_u = u;            // lowest FCLib error (the output)
+  std::vector<double> anchor_r = r, anchor_u = u;        // lowest psi (the watchdog's fallback)
+  double anchor_psi = std::numeric_limits<double>::infinity();
+  int nonmonotone_steps = 0;
+  double damping = options.polish_initial_damping;
+  Eigen::VectorXd step;
+  for (int it = 0; it < options.polish_iterations && best_error > options.tolerance; ++it) {
+    double psi = 0.0, slope = 0.0;
+    if (!levenberg_marquardt_step(p, rho, r, u, damping, step, psi, slope)) break;
+    if (psi < anchor_psi) {
+      anchor_psi = psi;
+      anchor_r = r;
+      anchor_u = u;
+      nonmonotone_steps = 0;
+    }
+    ++result.iterations;
+    double t = 1.0;
+    bool accepted = false;
+    const bool backtrack = nonmonotone_steps >= watchdog;
+    if (backtrack) {
+      // The watchdog fired: back to the best iterate, a safeguarded step from there.
+      r = anchor_r;
+      u = anchor_u;
+      damping *= 10.0;
+      if (!levenberg_marquardt_step(p, rho, r, u, damping, step, psi, slope)) break;
+      nonmonotone_steps = 0;
+    }
+    for (int halving = 0; halving < (backtrack ? 30 : 1); ++halving, t *= 0.5) {
+      for (std::size_t i = 0; i < m; ++i) trial_r[i] = r[i] + t * step[static_cast<Eigen::Index>(i)];
+      trial_u = velocities(p, trial_r);
+      const double trial_psi = 0.5 * alart_curnier(p, rho, trial_r, trial_u, scratch, nullptr);
+      if (!std::isfinite(trial_psi)) continue;
+      if (trial_psi <= psi + 1e-4 * t * slope) {
+        accepted = true;
+        break;
+      }
+      if (!backtrack) {
+        accepted = true;  // a nonmonotone full step, counted by the watchdog
+        ++nonmonotone_steps;
+      }
+    }
+    if (!accepted) break;
+    if (!backtrack) damping = std::max(damping * 0.1, 1e-14);
+    r.swap(trial_r);
+    u.swap(trial_u);
+    const double trial_error = fclib_error(p, r, u);
+    if (trial_error < best_error) {
+      best_error = trial_error;
+      best_r = r;
+      best_u = u;
+    }
+  }
+  result.improved = best_error < error;
+  r = std::move(best_r);
+  u = std::move(best_u);
+  error = best_error;
+  return result;
+}
+
 }  // namespace
+
+std::vector<double> alart_curnier_function(const LocalProblem& problem, const std::vector<double>& r) {
+  std::vector<double> F;
+  alart_curnier(problem, normal_scalings(problem), r, velocities(problem, r), F, nullptr);
+  return F;
+}
 
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u) {
   double f2 = 0.0, q2 = 0.0;
@@ -94,6 +293,7 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
     for (std::size_t k = 0; k < n; ++k)
       for (int i = 0; i < 3; ++i) solution.r[3 * k + static_cast<std::size_t>(i)] = explicit_problem.r[k][i];
   };
+  int next_polish = std::max(options.polish_after, 1);
   for (solution.iterations = 1; solution.iterations <= options.max_iterations; ++solution.iterations) {
     nlgs_sweep(explicit_problem, order, options.relaxation);
     flatten();
@@ -102,6 +302,19 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
     if (solution.error <= options.tolerance) {
       solution.converged = true;
       break;
+    }
+    if (options.polish == PolishMethod::newton && solution.iterations == next_polish) {
+      ++solution.polish_attempts;
+      const PolishResult polish = newton_polish(problem, options, solution.r, solution.u, solution.error);
+      solution.newton_iterations += polish.iterations;
+      if (solution.error <= options.tolerance) {
+        solution.converged = true;
+        break;
+      }
+      if (polish.improved) {
+        for (std::size_t k = 0; k < n; ++k) explicit_problem.r[k] = Vec3(solution.r[3 * k], solution.r[3 * k + 1], solution.r[3 * k + 2]);
+      }
+      next_polish *= 2;
     }
   }
   solution.iterations = std::min(solution.iterations, options.max_iterations);

@@ -31,13 +31,28 @@ struct LocalProblem {
 /// How to order the contacts within a sweep.
 enum class SweepOrder { as_stored, shuffled };
 
-/// Options of the file-backed solve (the simulation's SolverOptions plus an order).
+/// What to do when the sweeps alone converge slowly (rank-deficient W, e.g. box stacks with four
+/// contacts per face, where Gauss-Seidel crawls).
+enum class PolishMethod {
+  none,    ///< sweeps only (the simulation's solver as is)
+  newton,  ///< Levenberg-Marquardt steps on the Alart-Curnier function, started from the sweeps' iterate
+};
+
+/// Options of the file-backed solve (the simulation's SolverOptions plus an order and a polish).
 struct LocalProblemOptions {
   double tolerance = 1e-8;            ///< on the FCLib error ||F||/||q|| (rho = 1)
   int max_iterations = 10000;         ///< sweeps at most
   double relaxation = 1.0;            ///< omega
   SweepOrder order = SweepOrder::as_stored;  ///< contact order within a sweep
   std::uint64_t seed = 1;             ///< for SweepOrder::shuffled (one shuffle, reused every sweep)
+  PolishMethod polish = PolishMethod::none;  ///< none keeps the plain NLGS
+  /// Sweeps before the first polish attempt; if it does not reach the tolerance, sweeping resumes
+  /// and the next attempt comes after twice as many sweeps (so a failing polish costs at most
+  /// about as much as the sweeps themselves).
+  int polish_after = 20;
+  int polish_iterations = 30;         ///< Newton (LM) steps per attempt at most
+  /// Levenberg-Marquardt damping of the first step, relative to the mean diagonal of J^T J.
+  double polish_initial_damping = 1e-4;
 };
 
 /// Result of a file-backed solve.
@@ -45,6 +60,8 @@ struct LocalProblemSolution {
   std::vector<double> r;              ///< 3 * contacts
   std::vector<double> u;              ///< 3 * contacts
   int iterations = 0;                 ///< sweeps done
+  int newton_iterations = 0;          ///< polish steps done (all attempts)
+  int polish_attempts = 0;            ///< polish attempts started
   double error = 0.0;                 ///< ||F(r)|| / ||q||, natural map with rho = 1 (FCLib measure)
   bool converged = false;             ///< error <= tolerance
 };
@@ -53,7 +70,14 @@ struct LocalProblemSolution {
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 
 /// Solves the problem by NLGS from r = 0 with the simulation's sweep and local solver; the error
-/// is evaluated after every sweep (one W r product).
+/// is evaluated after every sweep (one W r product). With PolishMethod::newton, Newton attempts
+/// are interleaved with the sweeps (see LocalProblemOptions::polish_after and nlgs_solver/README.md).
 LocalProblemSolution solve_local_problem(const LocalProblem& problem, const LocalProblemOptions& options);
+
+/// Alart-Curnier function of the problem at r (Alart & Curnier 1991), per contact with
+/// rho = 1 / W_nn:  a = r_n - rho u_n,  F_n = r_n - max(a, 0),
+/// F_T = r_T - P_{disc(mu max(a, 0))}(r_T - rho u_T); F = 0 exactly at the solutions.
+/// Returns F (3 nc); used by the Newton polish, exposed for its tests.
+std::vector<double> alart_curnier_function(const LocalProblem& problem, const std::vector<double>& r);
 
 }  // namespace rubble

@@ -1,0 +1,119 @@
+// `rubble fclib FILE.hdf5 [--tolerance 1e-8] [--max-iterations N] [--out SOL.h5] ...`
+// Reads an FCLib local frictional-contact problem (shared/fclib/README.md), solves it from r = 0
+// with the simulation's NLGS sweep and local solver (plus the optional Newton polish), writes r
+// and u to SOL.h5 (datasets `r`, `u`) and prints one JSON line: file, contacts, iterations, error
+// (||F||/||q||, natural map), seconds, converged.
+// Invalid input -> message on stderr naming the file and dataset, exit code 2.
+#include <chrono>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "apps/commands.hpp"
+#include "nlgs_solver/fclib_file.hpp"
+#include "nlgs_solver/local_problem.hpp"
+
+namespace rubble::apps {
+namespace {
+
+struct FclibArguments {
+  std::string input;
+  std::string output;
+  std::string order = "as_stored";
+  std::string polish = "newton";
+  LocalProblemOptions options;
+};
+
+int fclib_command(FclibArguments& args) {
+  LocalProblem problem;
+  try {
+    problem = read_fclib_local(args.input);
+  } catch (const FclibFileError& e) {
+    std::cerr << "rubble fclib: error: " << e.what() << "\n";
+    return exit_bad_input;
+  }
+  LocalProblemOptions& options = args.options;
+  if (args.order == "as_stored") {
+    options.order = SweepOrder::as_stored;
+  } else if (args.order == "shuffled") {
+    options.order = SweepOrder::shuffled;
+  } else {
+    std::cerr << "rubble fclib: error: --order must be 'as_stored' or 'shuffled', got '" << args.order << "'\n";
+    return exit_bad_input;
+  }
+  if (args.polish == "none") {
+    options.polish = PolishMethod::none;
+  } else if (args.polish == "newton") {
+    options.polish = PolishMethod::newton;
+  } else {
+    std::cerr << "rubble fclib: error: --polish must be 'none' or 'newton', got '" << args.polish << "'\n";
+    return exit_bad_input;
+  }
+
+  const auto start = std::chrono::steady_clock::now();
+  LocalProblemSolution solution;
+  try {
+    solution = solve_local_problem(problem, options);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "rubble fclib: error: " << args.input << ": " << e.what() << "\n";
+    return exit_bad_input;
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  if (!args.output.empty()) {
+    try {
+      write_fclib_solution(args.output, solution.r, solution.u);
+    } catch (const FclibFileError& e) {
+      std::cerr << "rubble fclib: error: " << e.what() << "\n";
+      return exit_failure;
+    }
+  }
+  const nlohmann::json line = {{"file", args.input},
+                               {"contacts", problem.contact_count()},
+                               {"iterations", solution.iterations},
+                               {"newton_iterations", solution.newton_iterations},
+                               {"error", solution.error},
+                               {"seconds", seconds},
+                               {"converged", solution.converged},
+                               {"tolerance", options.tolerance},
+                               {"order", args.order},
+                               {"seed", options.seed},
+                               {"omega", options.relaxation},
+                               {"polish", args.polish},
+                               {"output", args.output}};
+  std::cout << line.dump() << std::endl;
+  return exit_ok;
+}
+
+}  // namespace
+
+void register_fclib_command(CLI::App& app) {
+  auto args = std::make_shared<FclibArguments>();
+  CLI::App* cmd = app.add_subcommand("fclib", "Solve an FCLib local frictional-contact problem (HDF5) by NLGS");
+  cmd->add_option("file", args->input, "FCLib HDF5 file with /fclib_local (W, q, mu)")->required();
+  cmd->add_option("--tolerance", args->options.tolerance, "Stop when ||F(r)||/||q|| (natural map) <= this")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--max-iterations", args->options.max_iterations, "NLGS sweeps at most")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--out", args->output, "Solution file: datasets 'r' and 'u' (3 x contacts each)");
+  cmd->add_option("--order", args->order, "Contact order in a sweep: as_stored or shuffled")->capture_default_str();
+  cmd->add_option("--seed", args->options.seed, "Seed of the shuffled order")->capture_default_str();
+  cmd->add_option("--omega", args->options.relaxation, "Relaxation of the sweep, in (0, 2)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 2.0));
+  cmd->add_option("--polish", args->polish,
+                  "After the sweeps stall: none, or newton (semismooth Newton on the Alart-Curnier function)")
+      ->capture_default_str();
+  cmd->add_option("--polish-after", args->options.polish_after,
+                  "Sweeps before the polish may start (it starts earlier if the sweeps stall)")
+      ->capture_default_str();
+  cmd->callback([args] {
+    const int code = fclib_command(*args);
+    if (code != exit_ok) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace rubble::apps
