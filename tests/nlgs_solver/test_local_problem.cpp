@@ -1,6 +1,8 @@
 // The file-backed (W, q, mu) problem: solved by the simulation's sweep to the FCLib error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 #include "nlgs_solver/local_problem.hpp"
@@ -52,6 +54,67 @@ TEST(LocalProblem, ShuffledOrderReachesTheSameTolerance) {
   const LocalProblemSolution s = solve_local_problem(p, options);
   EXPECT_TRUE(s.converged);
   EXPECT_LE(s.error, 1e-9);
+}
+
+// A rank-deficient W = H^T H (3n local rows, fewer body coordinates), as for boxes resting on
+// several contacts per face: the solution r is not unique and Gauss-Seidel crawls; the polish
+// must still reach a tight tolerance, checked with the library-independent Alart-Curnier zero.
+LocalProblem rank_deficient_problem(std::size_t n, int coordinates, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const int m = static_cast<int>(3 * n);
+  Eigen::MatrixXd H(coordinates, m);
+  for (int i = 0; i < coordinates; ++i)
+    for (int j = 0; j < m; ++j) H(i, j) = u(rng);
+  const Eigen::MatrixXd W = H.transpose() * H;
+  LocalProblem p;
+  p.W.rows = p.W.columns = m;
+  p.W.row_start.push_back(0);
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < m; ++j) {
+      p.W.column.push_back(j);
+      p.W.value.push_back(W(i, j));
+    }
+    p.W.row_start.push_back(static_cast<int>(p.W.value.size()));
+  }
+  // q = H^T f with a compressive normal part so that a solution exists (u = H^T (H r + f)).
+  Eigen::VectorXd f(coordinates);
+  for (int i = 0; i < coordinates; ++i) f(i) = u(rng);
+  const Eigen::VectorXd q = H.transpose() * f;
+  for (int i = 0; i < m; ++i) p.q.push_back(q(i) - (i % 3 == 0 ? 1.0 : 0.0));
+  for (std::size_t k = 0; k < n; ++k) p.mu.push_back(0.5);
+  return p;
+}
+
+TEST(LocalProblem, AlartCurnierFunctionVanishesExactlyAtTheSolution) {
+  const LocalProblem p = random_problem(8, 3);
+  LocalProblemOptions options;
+  options.tolerance = 1e-13;
+  const LocalProblemSolution s = solve_local_problem(p, options);
+  ASSERT_TRUE(s.converged);
+  double norm = 0.0;
+  for (double f : alart_curnier_function(p, s.r)) norm = std::max(norm, std::abs(f));
+  EXPECT_LT(norm, 1e-11);
+  // At r = 0 with a compressive q_n, F_n = rho q_n != 0 for some contact.
+  double at_zero = 0.0;
+  for (double f : alart_curnier_function(p, std::vector<double>(p.q.size(), 0.0))) at_zero = std::max(at_zero, std::abs(f));
+  EXPECT_GT(at_zero, 1e-3);
+}
+
+TEST(LocalProblem, NewtonPolishSolvesRankDeficientProblemsWhereSweepsStall) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    const LocalProblem p = rank_deficient_problem(10, 18, seed);
+    LocalProblemOptions options;
+    options.tolerance = 1e-10;
+    options.max_iterations = 200;
+    const LocalProblemSolution plain = solve_local_problem(p, options);
+    options.polish = PolishMethod::newton;
+    const LocalProblemSolution polished = solve_local_problem(p, options);
+    EXPECT_TRUE(polished.converged) << "seed " << seed << " error " << polished.error;
+    EXPECT_LE(fclib_error(p, polished.r, polished.u), 1e-10);
+    EXPECT_GT(polished.newton_iterations, 0);
+    EXPECT_LE(polished.iterations, plain.iterations) << "seed " << seed;
+  }
 }
 
 TEST(LocalProblem, RejectsInconsistentSizes) {
