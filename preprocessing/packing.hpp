@@ -27,20 +27,42 @@ class PackingError : public std::invalid_argument {
 
 /// How grain radii are distributed between radius_min and radius_max.
 enum class SizeDistribution {
+  /// Every grain has radius_max (radius_min is not used).
+  monodisperse,
   /// Radius uniform in [radius_min, radius_max].
   uniform_radius,
   /// Uniform by volume fraction: every radius class [r, r + dr] holds the same total grain
   /// volume, so the number density is n(r) ∝ r^-3 (Voivret et al. 2007, Phys. Rev. E 76; the
   /// accretion study's distribution). Sampled by inverting F(r) = (rmin^-2 - r^-2) / (rmin^-2 - rmax^-2).
   uniform_volume_fraction,
+  /// Discrete sizes: SizeRange::bins lists (diameter, fraction) pairs, the fraction being a
+  /// share of the grain volume (SizeRange::bin_fractions_by_volume, the usual sieve-curve
+  /// convention) or of the number of grains. A grain falls in bin i with probability
+  /// p_i = f_i / d_i^3 / sum_j f_j / d_j^3 (by volume) or f_i / sum_j f_j (by number).
+  bins,
+};
+
+/// One size class of SizeDistribution::bins.
+struct SizeBin {
+  double diameter = 0.0;  ///< m, > 0
+  double fraction = 0.0;  ///< >= 0, share of the volume (or number) of the grains; normalised
 };
 
 /// A range of grain radii and how they are drawn.
 struct SizeRange {
-  double radius_min = 0.0;  ///< m, > 0
-  double radius_max = 0.0;  ///< m, >= radius_min
+  double radius_min = 0.0;  ///< m, > 0 (for bins: half the smallest diameter, see size_bins())
+  double radius_max = 0.0;  ///< m, >= radius_min (for bins: half the largest diameter)
   SizeDistribution distribution = SizeDistribution::uniform_radius;  ///< law of the radius
+  std::vector<SizeBin> bins;           ///< SizeDistribution::bins only
+  bool bin_fractions_by_volume = true; ///< bins: fractions of the volume (true) or of the number
 };
+
+/// A SizeRange of discrete bins, radius_min/radius_max set from the bins. Throws PackingError
+/// for an empty list, a diameter <= 0, a fraction < 0 or fractions summing to 0.
+SizeRange size_bins(std::vector<SizeBin> bins, bool fractions_by_volume = true);
+
+/// Probability that a drawn grain falls in each bin (SizeDistribution::bins): the number shares.
+std::vector<double> bin_number_probabilities(const SizeRange& sizes);
 
 /// One placed grain: centre and (bounding) radius.
 struct PackedGrain {
@@ -65,6 +87,19 @@ struct CubicGridOptions {
   double cell_size = 0.0;            ///< m, mesh of the grid; 0 picks 2 radius_max (d_max); >= 2 radius_max
   Vec3 center = Vec3::Zero();        ///< m, centre of the grid
   SizeRange sizes{};                 ///< radii
+};
+
+/// A loose random cloud: `count` grains at uniformly random positions inside a ball, no two
+/// overlapping (random sequential addition: each grain, largest first, is tried at random
+/// positions until it overlaps none of those placed before).
+struct SphereCloudOptions {
+  std::uint64_t count = 0;       ///< number of grains
+  SizeRange sizes{};             ///< radii
+  Vec3 center = Vec3::Zero();    ///< m, centre of the ball
+  double radius = 0.0;           ///< m, radius of the ball every grain lies inside, >= radius_max
+  /// Tries per grain before giving up with a PackingError (the cloud is too dense: random
+  /// sequential addition jams near a volume fraction of 0.38 for equal spheres).
+  int max_attempts = 10000;
 };
 
 /// Largest number of grains a packing will produce (memory guard).
@@ -102,5 +137,13 @@ std::vector<PackedGrain> box_deposit(const BoxDepositOptions& options, std::uint
 /// Places one grain in each cell of the n^3 grid centred on options.center (x fastest, then y, then z).
 /// Throws PackingError if the options are invalid.
 std::vector<PackedGrain> cubic_grid_packing(const CubicGridOptions& options, std::uint64_t seed);
+
+/// The ball radius that gives a cloud of `count` grains of the given sizes the volume fraction
+/// `volume_fraction` (grain volume / ball volume), from the mean grain volume of the law.
+double sphere_cloud_radius(std::uint64_t count, const SizeRange& sizes, double volume_fraction);
+
+/// A random loose cloud in a ball (SphereCloudOptions). Grains come out in placement order
+/// (largest first). Throws PackingError if the options are invalid or a grain finds no room.
+std::vector<PackedGrain> sphere_cloud(const SphereCloudOptions& options, std::uint64_t seed);
 
 }  // namespace rubble

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace rubble {
 namespace {
@@ -24,7 +25,7 @@ double smallest_gap(const std::vector<PackedGrain>& grains) {
 BoxDepositOptions deposit_options() {
   BoxDepositOptions options;
   options.count = 700;
-  options.sizes = SizeRange{0.04, 0.06, SizeDistribution::uniform_radius};
+  options.sizes = SizeRange{0.04, 0.06, SizeDistribution::uniform_radius, {}, true};
   options.region_min = Vec3(-0.6, -0.5, 0.0);
   options.region_max = Vec3(0.6, 0.5, 2.0);
   return options;
@@ -69,7 +70,7 @@ TEST(BoxDeposit, FillsLayersFromTheBottom) {
 
 TEST(BoxDeposit, DenseCellsStillDoNotOverlap) {
   BoxDepositOptions options = deposit_options();
-  options.sizes = SizeRange{0.05, 0.05, SizeDistribution::uniform_radius};
+  options.sizes = SizeRange{0.05, 0.05, SizeDistribution::uniform_radius, {}, true};
   options.cell_size = 0.1;  // exactly one diameter: grains may touch, never overlap
   options.count = 1000;
   options.region_min = Vec3::Zero();
@@ -115,7 +116,7 @@ TEST(BoxDeposit, RejectsInvalidOptions) {
 TEST(CubicGrid, OneGrainPerCellInsideItsCell) {
   CubicGridOptions options;
   options.cells_per_side = 5;
-  options.sizes = SizeRange{3.75, 5.0, SizeDistribution::uniform_volume_fraction};  // the accretion study
+  options.sizes = SizeRange{3.75, 5.0, SizeDistribution::uniform_volume_fraction, {}, true};  // the accretion study
   options.center = Vec3(1.0, -2.0, 3.0);
   const auto grains = cubic_grid_packing(options, 9);
   ASSERT_EQ(grains.size(), 125u);
@@ -136,7 +137,7 @@ TEST(CubicGrid, OneGrainPerCellInsideItsCell) {
 TEST(CubicGrid, ReproducibleAndRejectsInvalidOptions) {
   CubicGridOptions options;
   options.cells_per_side = 3;
-  options.sizes = SizeRange{0.5, 1.0, SizeDistribution::uniform_radius};
+  options.sizes = SizeRange{0.5, 1.0, SizeDistribution::uniform_radius, {}, true};
   const auto a = cubic_grid_packing(options, 5);
   const auto b = cubic_grid_packing(options, 5);
   const auto c = cubic_grid_packing(options, 6);
@@ -178,12 +179,12 @@ double cdf_distance(const SizeRange& sizes, Cdf exact, int n) {
 // probability 0.001 for the right law; the tolerance 0.006 is above that, and the wrong law (the
 // other one) is more than 0.1 away.
 TEST(DrawRadius, UniformRadiusFollowsItsCdf) {
-  const SizeRange sizes{1.0, 3.0, SizeDistribution::uniform_radius};
+  const SizeRange sizes{1.0, 3.0, SizeDistribution::uniform_radius, {}, true};
   EXPECT_LT(cdf_distance(sizes, [](double r) { return (r - 1.0) / 2.0; }, 200000), 0.006);
 }
 
 TEST(DrawRadius, UniformVolumeFractionFollowsItsCdf) {
-  const SizeRange sizes{1.0, 3.0, SizeDistribution::uniform_volume_fraction};
+  const SizeRange sizes{1.0, 3.0, SizeDistribution::uniform_volume_fraction, {}, true};
   // n(r) ∝ r^-3: F(r) = (1 - r^-2) / (1 - 1/9).
   const auto exact = [](double r) { return (1.0 - 1.0 / (r * r)) / (1.0 - 1.0 / 9.0); };
   EXPECT_LT(cdf_distance(sizes, exact, 200000), 0.006);
@@ -196,6 +197,132 @@ TEST(DrawRadius, UniformVolumeFractionFollowsItsCdf) {
     (r < 2.0 ? volume_low : volume_high) += r * r * r;
   }
   EXPECT_NEAR(volume_low / (volume_low + volume_high), 0.5, 0.01);
+}
+
+/// Kolmogorov-Smirnov p-value of the sample against the exact CDF: the statistic
+/// D = sup |F_n - F| over the sample points, and the asymptotic Kolmogorov distribution
+/// P(D > d) = 2 sum_k (-1)^(k-1) exp(-2 k^2 lambda^2), lambda = (sqrt(n) + 0.12 + 0.11/sqrt(n)) d
+/// (Stephens 1970's finite-n correction, as in Numerical Recipes' probks).
+template <typename Cdf>
+double ks_p_value(std::vector<double> sample, Cdf exact) {
+  std::sort(sample.begin(), sample.end());
+  const auto n = static_cast<double>(sample.size());
+  double d = 0.0;
+  for (std::size_t i = 0; i < sample.size(); ++i) {
+    const double f = exact(sample[i]);
+    d = std::max({d, std::abs(static_cast<double>(i + 1) / n - f), std::abs(f - static_cast<double>(i) / n)});
+  }
+  const double sqrt_n = std::sqrt(n);
+  const double lambda = (sqrt_n + 0.12 + 0.11 / sqrt_n) * d;
+  double p = 0.0;
+  for (int k = 1; k <= 100; ++k) {
+    p += 2.0 * ((k % 2) ? 1.0 : -1.0) * std::exp(-2.0 * k * k * lambda * lambda);
+  }
+  return std::clamp(p, 0.0, 1.0);
+}
+
+// The acceptance test: the accretion study's cubic grid of 22^3 = 10648 >= 10^4 grains,
+// diameters 7.5-10 m uniform in volume fraction; the radii pass Kolmogorov-Smirnov against
+// F(r) = (rmin^-2 - r^-2) / (rmin^-2 - rmax^-2) with p > 0.01, and fail it against the uniform-radius
+// law (so the test can fail).
+TEST(CubicGrid, VolumeFractionRadiiPassKolmogorovSmirnovOn10000Grains) {
+  CubicGridOptions options;
+  options.cells_per_side = 22;
+  options.sizes = SizeRange{3.75, 5.0, SizeDistribution::uniform_volume_fraction, {}, true};
+  const auto grains = cubic_grid_packing(options, 1);
+  ASSERT_EQ(grains.size(), 10648u);
+  std::vector<double> radii;
+  for (const PackedGrain& g : grains) radii.push_back(g.radius);
+  const double a = 1.0 / (3.75 * 3.75);
+  const double b = 1.0 / (5.0 * 5.0);
+  const auto volume_fraction_cdf = [&](double r) { return (a - 1.0 / (r * r)) / (a - b); };
+  const auto uniform_cdf = [](double r) { return (r - 3.75) / 1.25; };
+  EXPECT_GT(ks_p_value(radii, volume_fraction_cdf), 0.01);
+  EXPECT_LT(ks_p_value(radii, uniform_cdf), 0.01);
+  // Uniform in volume fraction: the grain volume in [r, r + dr] is the same for every r, so the
+  // two halves of the radius range hold the same volume (to 2%: 5000 grains per half).
+  double low = 0.0, high = 0.0;
+  for (const double r : radii) (r < 4.375 ? low : high) += r * r * r;
+  EXPECT_NEAR(low / (low + high), 0.5, 0.02);
+}
+
+TEST(DrawRadius, MonodisperseIsRadiusMax) {
+  const SizeRange sizes{0.5, 2.0, SizeDistribution::monodisperse, {}, true};
+  std::mt19937_64 rng(3);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(draw_radius(sizes, rng), 2.0);
+}
+
+// Bins by volume: two diameters 1 and 2 with equal volume shares. A d = 2 grain has 8 times the
+// volume of a d = 1 grain, so by number p(1) = 8/9, p(2) = 1/9; by number fractions p = f.
+// 90000 draws: the binomial standard deviation of the share is < 0.0011; tolerance 0.005.
+TEST(DrawRadius, BinsFollowTheirVolumeOrNumberFractions) {
+  const SizeRange by_volume = size_bins({{1.0, 0.5}, {2.0, 0.5}}, true);
+  EXPECT_EQ(by_volume.radius_min, 0.5);
+  EXPECT_EQ(by_volume.radius_max, 1.0);
+  const SizeRange by_number = size_bins({{1.0, 0.25}, {2.0, 0.75}}, false);
+  std::mt19937_64 rng(11);
+  int small_v = 0, small_n = 0;
+  double volume_small = 0.0, volume_total = 0.0;
+  const int n = 90000;
+  for (int i = 0; i < n; ++i) {
+    const double r = draw_radius(by_volume, rng);
+    ASSERT_TRUE(r == 0.5 || r == 1.0);
+    small_v += r == 0.5;
+    volume_small += r == 0.5 ? r * r * r : 0.0;
+    volume_total += r * r * r;
+    small_n += draw_radius(by_number, rng) == 0.5;
+  }
+  EXPECT_NEAR(small_v / static_cast<double>(n), 8.0 / 9.0, 0.005);
+  EXPECT_NEAR(volume_small / volume_total, 0.5, 0.02);
+  EXPECT_NEAR(small_n / static_cast<double>(n), 0.25, 0.005);
+  EXPECT_THROW(size_bins({}), PackingError);
+  EXPECT_THROW(size_bins({{-1.0, 1.0}}), PackingError);
+  EXPECT_THROW(size_bins({{1.0, 0.0}}), PackingError);
+}
+
+SphereCloudOptions cloud_options() {
+  SphereCloudOptions options;
+  options.count = 2000;
+  options.sizes = SizeRange{0.5, 1.0, SizeDistribution::uniform_radius, {}, true};
+  options.center = Vec3(1.0, 2.0, 3.0);
+  options.radius = sphere_cloud_radius(options.count, options.sizes, 0.15);
+  return options;
+}
+
+TEST(SphereCloud, ExactCountInsideTheBallNoOverlapReproducible) {
+  const SphereCloudOptions options = cloud_options();
+  const auto grains = sphere_cloud(options, 4);
+  ASSERT_EQ(grains.size(), options.count);
+  double volume = 0.0;
+  for (const PackedGrain& g : grains) {
+    EXPECT_LE((g.position - options.center).norm() + g.radius, options.radius * (1.0 + 1e-12));
+    volume += g.radius * g.radius * g.radius;
+  }
+  EXPECT_GE(smallest_gap(grains), 0.0);
+  // The ball radius was chosen from the law's mean grain volume: the realised volume fraction is
+  // 0.15 up to the sampling error of 2000 radii (relative std of the mean r^3 < 2%).
+  EXPECT_NEAR(volume / std::pow(options.radius, 3), 0.15, 0.015);
+  const auto again = sphere_cloud(options, 4);
+  const auto other = sphere_cloud(options, 5);
+  for (std::size_t i = 0; i < grains.size(); ++i) {
+    EXPECT_EQ(grains[i].position, again[i].position);
+    EXPECT_EQ(grains[i].radius, again[i].radius);
+  }
+  EXPECT_NE(grains[0].position, other[0].position);
+}
+
+TEST(SphereCloud, TooDenseOrInvalidIsAPackingError) {
+  SphereCloudOptions options = cloud_options();
+  options.radius = sphere_cloud_radius(options.count, options.sizes, 0.6);  // beyond random jamming
+  options.max_attempts = 200;
+  EXPECT_THROW(sphere_cloud(options, 1), PackingError);
+  options = cloud_options();
+  options.radius = 0.9;  // < radius_max
+  EXPECT_THROW(sphere_cloud(options, 1), PackingError);
+  options = cloud_options();
+  options.count = 0;
+  EXPECT_THROW(sphere_cloud(options, 1), PackingError);
+  EXPECT_THROW(sphere_cloud_radius(10, options.sizes, 1.5), PackingError);
 }
 
 TEST(DeriveSeed, StreamsDiffer) {
