@@ -173,6 +173,8 @@ int run_command(const RunArguments& args) {
     return exit_numerical_failure;
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
+  } catch (const std::invalid_argument& e) {
+    return bad_input(e.what());
   } catch (const std::runtime_error& e) {
     std::cerr << "rubble run: error: " << e.what() << "\n";
     return exit_failure;
@@ -185,35 +187,44 @@ int run_command(const RunArguments& args) {
 void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArguments>();
   CLI::App* run = app.add_subcommand("run", "Run a scene file (without SCENE: the built-in default scene)");
-  const auto finite = CLI::Validator(
-      [](const std::string& text) {
-        // CLI11 reads "nan" and "inf" as numbers; an option value must be an actual finite number.
-        try {
+  // CLI11 reads "nan" and "inf" as numbers and its range checks print the whole double range:
+  // these say what was expected in words.
+  const auto number = [](std::string expected, auto accept) {
+    return CLI::Validator(
+        [expected, accept](const std::string& text) {
+          double value = 0.0;
           std::size_t used = 0;
-          const double value = std::stod(text, &used);
-          if (used != text.size() || !std::isfinite(value)) return std::string("expected a finite number, got " + text);
-        } catch (const std::exception&) {
-          return std::string("expected a number, got " + text);
-        }
-        return std::string();
-      },
-      "FINITE");
+          try {
+            value = std::stod(text, &used);
+          } catch (const std::exception&) {
+            used = 0;
+          }
+          if (used == 0 || used != text.size() || !std::isfinite(value) || !accept(value)) {
+            return "expected " + expected + ", got '" + text + "'";
+          }
+          return std::string();
+        },
+        "");
+  };
+  const auto positive = number("a finite number > 0", [](double v) { return v > 0.0; });
+  const auto non_negative = number("a finite number >= 0", [](double v) { return v >= 0.0; });
+  const auto count = number("an integer >= 0", [](double v) { return v >= 0.0 && v == std::floor(v); });
   run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
   run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
-      ->check(finite & CLI::PositiveNumber);
+      ->check(positive);
   run->add_option("--resume", args->resume_directory,
                   "Go on with the run in DIR from its newest valid checkpoint (DIR/checkpoints)")
       ->type_name("DIR");
   run->add_option("--checkpoint-every", args->checkpoint_every, "Write a checkpoint every N steps (default 0: off)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(count);
   run->add_option("--checkpoint-minutes", args->checkpoint_minutes,
                   "Write a checkpoint every T minutes of wall time (default 10; 0: off)")
-      ->check(finite & CLI::NonNegativeNumber);
+      ->check(non_negative);
   run->add_option("--max-speed", args->max_speed,
                   "Stop when a grain is faster than V m/s (default: when a grain moves more than its own radius "
                   "in one step)")
-      ->check(finite & CLI::PositiveNumber);
+      ->check(positive);
   run->add_flag("--no-runaway-check", args->no_runaway_check, "Only stop on non-finite values, not on speed");
   run->add_flag("--print-default-scene", args->print_default, "Print the built-in default scene as TOML and exit");
   run->add_flag("-q,--quiet", args->quiet, "No progress lines");

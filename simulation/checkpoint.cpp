@@ -307,6 +307,15 @@ std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint) {
     payload.put(k < memory.common_normals.size() ? memory.common_normals[k] : Vec3::Zero());
   }
   put_progress(payload, checkpoint.progress);
+  payload.put(static_cast<std::uint8_t>(checkpoint.rest.armed));
+  payload.put(static_cast<std::uint8_t>(checkpoint.rest.below));
+  payload.put(checkpoint.rest.below_since);
+  payload.put(checkpoint.rest.decay_window);
+  payload.put(static_cast<std::uint64_t>(checkpoint.rest.history.size()));
+  for (const auto& [t, log_energy] : checkpoint.rest.history) {
+    payload.put(t);
+    payload.put(log_energy);
+  }
 
   Writer file;
   for (char c : magic) file.put(c);
@@ -370,6 +379,15 @@ Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::s
     checkpoint.detection_memory.common_normals[k] = in.vec3();
   }
   checkpoint.progress = get_progress(in);
+  checkpoint.rest.armed = in.get<std::uint8_t>() != 0;
+  checkpoint.rest.below = in.get<std::uint8_t>() != 0;
+  checkpoint.rest.below_since = in.get<double>();
+  checkpoint.rest.decay_window = in.get<double>();
+  checkpoint.rest.history.resize(in.length(16, "rest history"));
+  for (auto& [t, log_energy] : checkpoint.rest.history) {
+    t = in.get<double>();
+    log_energy = in.get<double>();
+  }
   if (!in.at_end()) in.fail("unexpected bytes after the payload");
   if (checkpoint.state.step < checkpoint.progress.first_step || checkpoint.state.step > checkpoint.progress.end_step) {
     in.fail(fmt::format("step {} outside the run's steps [{}, {}]", checkpoint.state.step,

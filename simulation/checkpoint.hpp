@@ -22,6 +22,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "contact_detection/contact.hpp"
@@ -50,6 +51,16 @@ struct RunProgress {
   double wall_seconds = 0.0;           ///< wall time spent stepping so far, over every session
 };
 
+/// The memory of the "until at rest" watcher (simulation/run_control.hpp, RestDetector), so that
+/// a resumed run stops at rest on the same step as an uninterrupted one.
+struct RestWatch {
+  bool armed = false;                               ///< the energy has been above the threshold
+  bool below = false;                               ///< below_since is set
+  double below_since = 0.0;                         ///< s, when the energy went below the threshold
+  std::vector<std::pair<double, double>> history;   ///< (t, ln E) samples of the decay fit
+  double decay_window = 0.0;                        ///< s, span of the decay fit
+};
+
 /// Everything saved at a checkpoint.
 struct Checkpoint {
   std::string scene_text;    ///< the scene as TOML (the model is rebuilt from it on resume)
@@ -63,6 +74,7 @@ struct Checkpoint {
   ContactList contacts;              ///< last step's contacts with every field (warm start)
   DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
   RunProgress progress;              ///< run-loop bookkeeping
+  RestWatch rest;                    ///< the at-rest watcher's memory (until = "rest")
 };
 
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).

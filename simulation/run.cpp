@@ -56,7 +56,8 @@ std::optional<std::string> velocity_problem(const Vec3& v, const Vec3& w, double
                        w.y(), w.z());
   }
   if (limit >= 0.0 && v.norm() > limit) {
-    return fmt::format("runaway speed {:.4g} m/s above the bound {:.4g} m/s", v.norm(), limit);
+    // stableNorm: |v| of a finite v can overflow the plain norm (1e300 m/s reads "inf").
+    return fmt::format("runaway speed {:.4g} m/s above the bound {:.4g} m/s", v.stableNorm(), limit);
   }
   return std::nullopt;
 }
@@ -129,6 +130,25 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
   return "update_positions";
 }
 
+/// Grains whose mass properties overflowed or vanished (e.g. a radius of 1e200 m gives an
+/// infinite mass, which the solver would take for a wall's zero inverse mass) cannot be run:
+/// reported as bad input before anything is written.
+void check_mass_properties(const Model& model) {
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_grain(b)) continue;
+    const bool ok = std::isfinite(model.mass[b]) && model.mass[b] > 0.0 && model.inverse_mass[b] > 0.0 &&
+                    std::isfinite(model.inverse_mass[b]) && model.principal_inertia[b].allFinite() &&
+                    (model.principal_inertia[b].array() > 0.0).all() && std::isfinite(model.bounding_radius[b]);
+    if (!ok) {
+      throw std::invalid_argument(fmt::format(
+          "body {} (a grain): mass {} kg, principal inertia ({}, {}, {}) kg m^2, bounding radius {} m: expected "
+          "finite positive values (is its size or density out of range?)",
+          b, model.mass[b], model.principal_inertia[b].x(), model.principal_inertia[b].y(),
+          model.principal_inertia[b].z(), model.bounding_radius[b]));
+    }
+  }
+}
+
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) {
@@ -139,6 +159,7 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
   StepWorkspace workspace;
   RunSummary summary;
   RunProgress progress;
+  check_mass_properties(model);
 
   const fs::path directory = run.output.directory;
   fs::create_directories(directory);
@@ -181,21 +202,33 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
   progress.end_step = progress.first_step + total_steps;
   summary.first_step = state.step;
 
+  // until = "rest" (run_control.hpp): stop once the mean kinetic energy per grain stayed below the
+  // threshold long enough. A resumed run takes the watcher's memory from the checkpoint.
+  RestDetector rest;
+  rest.criterion = run.rest;
+  if (control.resume != nullptr) {
+    const RestWatch& saved = control.resume->rest;
+    rest.armed = saved.armed;
+    if (saved.below) rest.below_since = saved.below_since;
+    rest.history.assign(saved.history.begin(), saved.history.end());
+    rest.decay_window = saved.decay_window;
+  }
+
   const auto write_checkpoint_now = [&] {
     file->flush();  // the run file first: the checkpoint then never promises rows that are not on disk
     progress.series_rows = file->series_rows();
     progress.snapshots = file->snapshot_count();
     Checkpoint checkpoint{control.scene_text, control.scene_source, run.end_time, run.seed, state,
-                          workspace.contacts,  workspace.detection_memory, progress};
+                          workspace.contacts,  workspace.detection_memory, progress, RestWatch{}};
+    checkpoint.rest.armed = rest.armed;
+    checkpoint.rest.below = rest.below_since.has_value();
+    checkpoint.rest.below_since = rest.below_since.value_or(0.0);
+    checkpoint.rest.history.assign(rest.history.begin(), rest.history.end());
+    checkpoint.rest.decay_window = rest.decay_window;
     summary.last_checkpoint = write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept);
     last_checkpoint_step = state.step;
   };
 
-  // until = "rest" (run_control.hpp): stop once the mean kinetic energy per grain stayed below the
-  // threshold long enough. A resumed run is taken as already armed (it has moved before).
-  RestDetector rest;
-  rest.criterion = run.rest;
-  rest.armed = control.resume != nullptr;
   std::size_t grain_count = 0;
   for (std::size_t b = 0; b < model.body_count(); ++b) grain_count += model.is_grain(b) ? 1 : 0;
   const double start_time = state.time;

@@ -72,8 +72,10 @@ struct RunSummary {
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
 /// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in
 /// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory. Throws
-/// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors and
-/// CheckpointError if control.resume does not fit the scene or the run file.
+/// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors,
+/// CheckpointError if control.resume does not fit the scene or the run file, and
+/// std::invalid_argument (before writing anything) if a grain's mass, inertia or size is not
+/// finite and positive.
 RunSummary run_scene(const Scene& scene, const RunControl& control);
 
 }  // namespace rubble

@@ -59,6 +59,7 @@ Checkpoint sample_checkpoint(std::int64_t step = 1234) {
   c.detection_memory.pairs = {BodyPair{0, 1}, BodyPair{1, 2}};
   c.detection_memory.common_normals = {Vec3(0, 0, 1), Vec3(0.6, 0.8, 0)};
   c.progress = RunProgress{0, 5000, 50, step, 25, 4321.0, 7.5e-5, 3, 12.5};
+  c.rest = RestWatch{true, true, 0.0625, {{0.01, -3.5}, {0.02, -4.25}}, 0.05};
   return c;
 }
 
@@ -101,6 +102,10 @@ TEST(CheckpointFormat, RoundTripIsBitExact) {
   EXPECT_EQ(back.detection_memory.common_normals, original.detection_memory.common_normals);
   EXPECT_EQ(back.progress.snapshot_period, 50);
   EXPECT_EQ(back.progress.iteration_sum, 4321.0);
+  EXPECT_TRUE(back.rest.armed);
+  EXPECT_EQ(back.rest.below_since, 0.0625);
+  EXPECT_EQ(back.rest.history, original.rest.history);
+  EXPECT_EQ(back.rest.decay_window, 0.05);
 }
 
 TEST(CheckpointFormat, EveryTruncationIsRejected) {
