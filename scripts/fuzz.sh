@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Builds the scene-parser fuzz target with clang (libFuzzer + AddressSanitizer + UBSan, in its own
+# CMake configuration build/fuzz) and runs it for SECONDS (default 60) from a seed corpus of every
+# scene file in the repository. Exits non-zero if libFuzzer finds a crash, a sanitizer report, an
+# exception other than SceneError, a timeout or an out-of-memory; the input that did it is saved
+# as build/fuzz/crash-* (or timeout-*, oom-*). See fuzz/README.md.
+#
+# usage: scripts/fuzz.sh [SECONDS]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${1:-60}
+build=build/fuzz
+
+mkdir -p "$build"
+CXX=clang++ CC=clang cmake -S fuzz -B "$build" -G Ninja > "$build/configure.log" 2>&1 ||
+  { cat "$build/configure.log"; exit 1; }
+cmake --build "$build" --target fuzz_scene_parser -j "$(nproc)"
+
+seeds="$build/seeds"
+corpus="$build/corpus"
+rm -rf "$seeds" && mkdir -p "$seeds" "$corpus"
+find examples tests -name '*.toml' -exec cp {} "$seeds/" \;
+echo "fuzz: $(ls "$seeds" | wc -l) seed scenes, ${seconds} s"
+
+# -timeout: one input may take at most 30 s (the parser expands generators: a scene of 10^6 grains
+# is legitimate work, not a hang); -rss_limit_mb: the scene-file limits keep memory below this.
+cd "$build"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ./fuzz_scene_parser -max_total_time="$seconds" -timeout=30 -rss_limit_mb=6144 -max_len=16384 \
+  -dict=../../fuzz/scene.dict -print_final_stats=1 corpus seeds
