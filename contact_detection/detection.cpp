@@ -95,7 +95,7 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
     };
     // Spatial hash of the cells into a table of 2^k buckets (about two per grain); a bucket may
     // hold grains of several cells, which the cell-range test below tells apart.
-    std::size_t bucket_count = 1;
+    std::size_t bucket_count = 64;
     while (bucket_count < 2 * grains.size()) bucket_count <<= 1;
     auto bucket_of = [&](const Cell& c) {
       const std::uint64_t h = static_cast<std::uint64_t>(c.x()) * 73856093u ^ static_cast<std::uint64_t>(c.y()) * 19349663u ^
@@ -141,6 +141,8 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
           const std::size_t bucket = bucket_of(c);
           for (std::uint32_t e = bucket_start[bucket]; e < bucket_start[bucket + 1]; ++e) {
             const std::uint32_t j = bucket_grains[e];
+            // A grain whose several cells hash to this bucket is listed once per cell, in a row.
+            if (e > bucket_start[bucket] && bucket_grains[e - 1] == j) continue;
             if (j <= k || !overlap(boxes[k], boxes[j])) continue;
             if (cell_of(boxes[k].lower.cwiseMax(boxes[j].lower)) != c) continue;  // owner cell only
             out.push_back({grains[k], grains[j]});

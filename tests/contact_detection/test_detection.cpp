@@ -59,6 +59,16 @@ TEST(BroadPhase, FindsEveryPairWithATenToOneSizeRatio) {
   EXPECT_LT(candidates.size(), 3 * needed.size() + 10);
 }
 
+// Few grains mean few hash buckets, so the many cells of one large grain share buckets: each pair
+// must still be reported once (a duplicated contact doubles a constraint and stalls the solver).
+TEST(BroadPhase, NoDuplicatePairsWhenCellsShareABucket) {
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const Cloud c = random_cloud(4, 0.05, 1.0, 1.5, seed);
+    const auto candidates = find_candidate_pairs(c.model, c.state, 0.01);
+    expect_superset(candidates, brute_force_pairs(c, 0.01));
+  }
+}
+
 TEST(Detection, ContactsAreSortedAndTheirGapsAreTheSpheresDistance) {
   Cloud c = random_cloud(500, 0.5, 1.0, 12.0, 3);
   DetectionMemory memory;
