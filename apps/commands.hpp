@@ -14,6 +14,8 @@ enum ExitCode : int {
 
 /// `rubble run [SCENE] [--out DIR]`: runs a scene (the built-in default without SCENE).
 void register_run_command(CLI::App& app);
+/// `rubble pack KIND ... -o SCENE.toml`: writes a scene file with an initial packing.
+void register_pack_command(CLI::App& app);
 /// `rubble gravity IN.h5 ...`: self-gravity of a particle file.
 void register_gravity_command(CLI::App& app);
 /// `rubble post RUN.h5 ...`: metrics, plots and ParaView files of a run.

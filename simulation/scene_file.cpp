@@ -8,14 +8,20 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
+#include <random>
 #include <sstream>
 #include <vector>
 
 #include <toml++/toml.h>
 
 #include "core/units.hpp"
+#include "core/polyhedron.hpp"
+#include "preprocessing/grain_shapes.hpp"
 #include "preprocessing/packing.hpp"
+#include "preprocessing/polyhedron_file.hpp"
+#include "preprocessing/random_polyhedron.hpp"
 #include "simulation/run_control.hpp"
 
 namespace rubble {
@@ -157,6 +163,9 @@ class TableReader {
 
   /// Rejects keys not in `allowed` (typos!), suggesting the closest allowed key.
   void allow_only(std::initializer_list<std::string_view> allowed, std::string_view context = {}) const {
+    allow_only(std::vector<std::string_view>(allowed), context);
+  }
+  void allow_only(const std::vector<std::string_view>& allowed, std::string_view context = {}) const {
     for (const auto& [key, node] : table_) {
       const std::string_view name = key.str();
       if (std::find(allowed.begin(), allowed.end(), name) != allowed.end()) continue;
@@ -374,9 +383,10 @@ struct GrainOrigin {
   const toml::node* node = nullptr;  ///< the entry's table
 };
 
-/// A grain to add: sphere only for now.
+/// A grain to add: a sphere, or a polyhedron when `polyhedron` is set.
 struct GrainSpec {
-  double radius = 0;
+  double radius = 0;  ///< sphere radius, or the polyhedron's bounding radius about its centroid
+  std::shared_ptr<const ConvexPolyhedron> polyhedron;  ///< body-frame shape, null for a sphere
   int material = 0;
   Vec3 position = Vec3::Zero();
   Quat orientation = Quat::Identity();
@@ -731,15 +741,16 @@ class SceneParser {
     for (std::size_t i = 0; i < entries.size(); ++i) {
       const TableReader& entry = entries[i];
       const std::string shape = entry.choice("shape", {"sphere", "polyhedron"});
-      if (shape == "polyhedron") {
-        entry.fail_key("shape", "polyhedral grains are not supported in scene files yet (expected \"sphere\")");
-      }
-      entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material"},
-                       "for a body of shape = \"sphere\"");
       GrainSpec grain;
-      grain.radius = entry.number("radius", positive());
-      grain.position = entry.vec3("position");
-      grain.orientation = entry.orientation_or_identity("orientation");
+      if (shape == "polyhedron") {
+        parse_polyhedron_body(entry, grain);
+      } else {
+        entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material"},
+                         "for a body of shape = \"sphere\"");
+        grain.radius = entry.number("radius", positive());
+        grain.position = entry.vec3("position");
+        grain.orientation = entry.orientation_or_identity("orientation");
+      }
       grain.velocity = entry.vec3_or("velocity", Vec3::Zero());
       grain.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
       grain.material = material_of(entry);
@@ -749,7 +760,167 @@ class SceneParser {
     }
   }
 
+  /// The parameters of random polyhedra common to [[bodies]] and [[generators]] (defaults: the
+  /// accretion study's).
+  RandomPolyhedronOptions parse_random_polyhedron_options(const TableReader& entry) const {
+    RandomPolyhedronOptions options;
+    options.min_vertices = static_cast<int>(entry.integer_or("min_vertices", options.min_vertices, 4, 100'000));
+    options.max_vertices = static_cast<int>(entry.integer_or("max_vertices", options.max_vertices, 4, 100'000));
+    if (options.max_vertices < options.min_vertices) {
+      entry.fail_key("max_vertices", "expected max_vertices >= min_vertices (" + std::to_string(options.min_vertices) +
+                                         "), got " + std::to_string(options.max_vertices));
+    }
+    options.min_elongation = entry.number_or("min_elongation", options.min_elongation, Range{0.0, 1.0, false, true});
+    options.min_platyness = entry.number_or("min_platyness", options.min_platyness, Range{0.0, 1.0, false, true});
+    return options;
+  }
+
+  /// A [[bodies]] entry of shape = "polyhedron": from a mesh file, from listed vertices and
+  /// faces, or random. position/orientation place the file's (or the listed vertices') frame;
+  /// for a random polyhedron, they are the centroid and the principal frame.
+  void parse_polyhedron_body(const TableReader& entry, GrainSpec& grain) {
+    const std::vector<std::string_view> placement = {"shape", "position", "orientation", "velocity", "angular_velocity",
+                                                     "material"};
+    const auto with = [&](std::initializer_list<std::string_view> more) {
+      std::vector<std::string_view> keys = placement;
+      keys.insert(keys.end(), more);
+      return keys;
+    };
+    const int sources = (entry.has("file") ? 1 : 0) + (entry.has("vertices") ? 1 : 0) + (entry.has("diameter") ? 1 : 0);
+    if (sources != 1) {
+      entry.fail_table(sources == 0 ? "a polyhedron needs its shape: expected one of file = \"rock.obj\", vertices = "
+                                      "[[x, y, z], ...] with faces, or diameter = D for a random one"
+                                    : "expected only one of file, vertices and diameter");
+    }
+    const Vec3 position = entry.vec3("position");
+    const Quat orientation = entry.orientation_or_identity("orientation");
+    PolyhedronPose pose;  // the body frame in the frame the shape was given in
+    ConvexPolyhedron shape;
+    if (entry.has("file")) {
+      entry.allow_only(with({"file", "scale"}), "for a polyhedron read from a file");
+      PolyhedronFileOptions options;
+      options.scale = entry.number_or("scale", 1.0, positive());
+      std::filesystem::path path = entry.string("file");
+      if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+      try {
+        shape = load_polyhedron_file(path.string(), options, &pose);
+      } catch (const std::exception& error) {
+        entry.fail_key("file", std::string("cannot use the polyhedron file: ") + error.what());
+      }
+    } else if (entry.has("vertices")) {
+      entry.allow_only(with({"vertices", "faces", "convexity_tolerance"}), "for a polyhedron given by its vertices");
+      const std::vector<Vec3> vertices = vector_list(entry, "vertices");
+      const toml::node* faces_node = entry.get("faces");
+      if (!faces_node) entry.missing("faces", "an array of faces, each an array of vertex indices (0-based, CCW from outside)");
+      std::vector<std::vector<int>> faces;
+      const auto* faces_array = faces_node->as_array();
+      if (!faces_array) entry.fail(faces_node, entry.key_path("faces"), "expected an array of arrays of vertex indices");
+      for (std::size_t f = 0; f < faces_array->size(); ++f) {
+        const auto* face = faces_array->get(f)->as_array();
+        const std::string key = entry.key_path("faces") + "[" + std::to_string(f) + "]";
+        if (!face || face->size() < 3) entry.fail(faces_array->get(f), key, "expected an array of >= 3 vertex indices");
+        std::vector<int> indices;
+        for (std::size_t k = 0; k < face->size(); ++k) {
+          const auto* index = face->get(k)->as_integer();
+          if (!index || index->get() < 0 || index->get() >= static_cast<std::int64_t>(vertices.size())) {
+            entry.fail(face->get(k), key, "expected vertex indices in [0, " + std::to_string(vertices.size() - 1) +
+                                              "], got " + describe_node(*face->get(k)));
+          }
+          indices.push_back(static_cast<int>(index->get()));
+        }
+        faces.push_back(std::move(indices));
+      }
+      PolyhedronBuildOptions options;
+      options.convexity_tolerance =
+          entry.number_or("convexity_tolerance", options.convexity_tolerance, Range{0.0, 0.5, false, true});
+      try {
+        shape = make_convex_polyhedron(vertices, std::move(faces), options, &pose);
+      } catch (const PolyhedronError& error) {
+        entry.fail_key(error.face >= 0 ? "faces" : "vertices", error.what());
+      }
+    } else {
+      entry.allow_only(with({"diameter", "shape_seed", "min_vertices", "max_vertices", "min_elongation", "min_platyness"}),
+                       "for a random polyhedron");
+      RandomPolyhedronOptions options = parse_random_polyhedron_options(entry);
+      options.diameter = entry.number("diameter", positive());
+      const auto shape_seed = static_cast<std::uint64_t>(
+          entry.integer_or("shape_seed", static_cast<std::int64_t>(derive_seed(scene_.run.seed, 1ULL << 40) >> 1), 0,
+                           std::numeric_limits<std::int64_t>::max()));
+      try {
+        shape = generate_random_polyhedron(options, shape_seed);
+      } catch (const std::exception& error) {
+        entry.fail_table(std::string("cannot make the random polyhedron: ") + error.what());
+      }
+    }
+    grain.position = position + orientation * pose.centroid;
+    grain.orientation = (orientation * pose.orientation).normalized();
+    grain.radius = shape.bounding_radius;
+    grain.polyhedron = std::make_shared<const ConvexPolyhedron>(std::move(shape));
+  }
+
+  /// An array of [x, y, z] arrays.
+  std::vector<Vec3> vector_list(const TableReader& entry, std::string_view key) const {
+    const toml::node* node = entry.get(key);
+    const auto* array = node ? node->as_array() : nullptr;
+    if (!array || array->size() < 4) {
+      entry.fail(node ? node : entry.anchor(), entry.key_path(key),
+                 "expected an array of >= 4 points [[x, y, z], ...]" +
+                     (node ? ", got " + describe_node(*node) : std::string()));
+    }
+    std::vector<Vec3> points;
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      const std::string path = entry.key_path(key) + "[" + std::to_string(i) + "]";
+      const auto* point = array->get(i)->as_array();
+      if (!point || point->size() != 3) entry.fail(array->get(i), path, "expected [x, y, z]");
+      Vec3 p;
+      for (int axis = 0; axis < 3; ++axis) {
+        p[axis] = entry.number_of(*point->get(static_cast<std::size_t>(axis)), path, any_number());
+      }
+      points.push_back(p);
+    }
+    return points;
+  }
+
+  /// Size keys of a generator: radius_min/radius_max, or radius (monodisperse), or bins.
   SizeRange parse_sizes(const TableReader& entry) const {
+    const std::string law =
+        entry.optional_choice("distribution", {"uniform_radius", "uniform_volume_fraction", "monodisperse", "bins"})
+            .value_or("uniform_radius");
+    const auto refuse = [&](std::initializer_list<std::string_view> keys, const std::string& why) {
+      for (const std::string_view key : keys) {
+        if (entry.has(key)) entry.fail_key(key, "not used with distribution = \"" + law + "\" (" + why + ")");
+      }
+    };
+    if (law == "monodisperse") {
+      refuse({"radius_min", "radius_max", "bins", "bin_fractions"}, "give radius");
+      SizeRange sizes;
+      sizes.distribution = SizeDistribution::monodisperse;
+      sizes.radius_min = sizes.radius_max = entry.number("radius", positive());
+      return sizes;
+    }
+    if (law == "bins") {
+      refuse({"radius_min", "radius_max", "radius"}, "give bins = [[diameter, fraction], ...]");
+      const toml::node* node = entry.get("bins");
+      if (!node) entry.missing("bins", "an array of [diameter, fraction] pairs, e.g. [[0.01, 0.5], [0.02, 0.5]]");
+      const auto* array = node->as_array();
+      if (!array || array->empty()) entry.fail(node, entry.key_path("bins"), "expected a nonempty array of [diameter, fraction] pairs");
+      std::vector<SizeBin> bins;
+      double total = 0.0;
+      for (std::size_t i = 0; i < array->size(); ++i) {
+        const std::string path = entry.key_path("bins") + "[" + std::to_string(i) + "]";
+        const auto* pair = array->get(i)->as_array();
+        if (!pair || pair->size() != 2) entry.fail(array->get(i), path, "expected [diameter, fraction]");
+        SizeBin bin;
+        bin.diameter = entry.number_of(*pair->get(0), path + "[0]", positive());
+        bin.fraction = entry.number_of(*pair->get(1), path + "[1]", non_negative());
+        total += bin.fraction;
+        bins.push_back(bin);
+      }
+      if (!(total > 0.0)) entry.fail(node, entry.key_path("bins"), "expected fractions summing to more than 0");
+      const bool by_volume = entry.optional_choice("bin_fractions", {"volume", "number"}).value_or("volume") == "volume";
+      return size_bins(std::move(bins), by_volume);
+    }
+    refuse({"radius", "bins", "bin_fractions"}, "give radius_min and radius_max");
     SizeRange sizes;
     sizes.radius_min = entry.number("radius_min", positive());
     sizes.radius_max = entry.number("radius_max", positive());
@@ -757,8 +928,6 @@ class SceneParser {
       entry.fail_key("radius_max", "expected radius_max >= radius_min (" + show(sizes.radius_min) +
                                        "), got " + show(sizes.radius_max));
     }
-    const std::string law = entry.optional_choice("distribution", {"uniform_radius", "uniform_volume_fraction"})
-                                .value_or("uniform_radius");
     sizes.distribution =
         law == "uniform_radius" ? SizeDistribution::uniform_radius : SizeDistribution::uniform_volume_fraction;
     return sizes;
@@ -769,18 +938,26 @@ class SceneParser {
     const auto max_count = static_cast<std::int64_t>(max_packed_grains);
     for (std::size_t g = 0; g < entries.size(); ++g) {
       const TableReader& entry = entries[g];
-      const std::string type = entry.choice("type", {"box_deposit", "cubic_grid"});
-      if (const auto shape = entry.optional_choice("shape", {"sphere", "random_polyhedron"});
-          shape && *shape != "sphere") {
-        entry.fail_key("shape", "polyhedral grains are not supported in scene files yet (expected \"sphere\")");
+      const std::string type = entry.choice("type", {"box_deposit", "cubic_grid", "sphere_cloud"});
+      const std::string shape = entry.optional_choice("shape", {"sphere", "polyhedron", "mix"}).value_or("sphere");
+      std::vector<std::string_view> allowed = {"type",     "shape",     "distribution", "radius_min", "radius_max",
+                                               "radius",   "bins",      "bin_fractions", "material",  "velocity"};
+      if (shape != "sphere") {
+        allowed.insert(allowed.end(), {"min_vertices", "max_vertices", "min_elongation", "min_platyness"});
       }
+      if (shape == "mix") allowed.push_back("polyhedron_fraction");
+      if (type == "box_deposit") {
+        allowed.insert(allowed.end(), {"count", "region_min", "region_max", "cell_size"});
+      } else if (type == "cubic_grid") {
+        allowed.insert(allowed.end(), {"cells_per_side", "cell_size", "center"});
+      } else {
+        allowed.insert(allowed.end(), {"count", "center", "cloud_radius", "volume_fraction"});
+      }
+      entry.allow_only(allowed, "for a generator of type = \"" + type + "\" and shape = \"" + shape + "\"");
       std::vector<PackedGrain> packed;
       const std::uint64_t seed = derive_seed(scene_.run.seed, g);
       try {
         if (type == "box_deposit") {
-          entry.allow_only({"type", "shape", "count", "radius_min", "radius_max", "distribution", "region_min",
-                            "region_max", "cell_size", "material", "velocity"},
-                           "for a generator of type = \"box_deposit\"");
           BoxDepositOptions options;
           options.count = static_cast<std::uint64_t>(entry.integer("count", 1, max_count));
           options.sizes = parse_sizes(entry);
@@ -806,10 +983,7 @@ class SceneParser {
                                         "); enlarge region_min/region_max or reduce radius_max or cell_size");
           }
           packed = box_deposit(options, seed);
-        } else {
-          entry.allow_only({"type", "shape", "cells_per_side", "cell_size", "center", "radius_min", "radius_max",
-                            "distribution", "material", "velocity"},
-                           "for a generator of type = \"cubic_grid\"");
+        } else if (type == "cubic_grid") {
           CubicGridOptions options;
           options.cells_per_side = static_cast<std::uint64_t>(entry.integer("cells_per_side", 1, 464));
           options.sizes = parse_sizes(entry);
@@ -821,6 +995,26 @@ class SceneParser {
           }
           options.center = entry.vec3_or("center", Vec3::Zero());
           packed = cubic_grid_packing(options, seed);
+        } else {
+          SphereCloudOptions options;
+          options.count = static_cast<std::uint64_t>(entry.integer("count", 1, max_count));
+          options.sizes = parse_sizes(entry);
+          options.center = entry.vec3_or("center", Vec3::Zero());
+          if (entry.has("cloud_radius") == entry.has("volume_fraction")) {
+            entry.fail_table("expected exactly one of cloud_radius (m) and volume_fraction (grain volume / ball volume)");
+          }
+          if (entry.has("cloud_radius")) {
+            options.radius = entry.number("cloud_radius", positive());
+            if (options.radius < options.sizes.radius_max) {
+              entry.fail_key("cloud_radius", "expected a cloud radius >= the largest grain radius (" +
+                                                 show(options.sizes.radius_max) + " m), got " + show(options.radius));
+            }
+          } else {
+            options.radius = sphere_cloud_radius(options.count, options.sizes,
+                                                 entry.number("volume_fraction", open(0.0, 1.0)));
+            options.radius = std::max(options.radius, options.sizes.radius_max);
+          }
+          packed = sphere_cloud(options, seed);
         }
       } catch (const PackingError& error) {
         // Options are checked above; anything left is still reported against the generator.
@@ -828,8 +1022,18 @@ class SceneParser {
       }
       const int material = material_of(entry);
       const Vec3 velocity = entry.vec3_or("velocity", Vec3::Zero());
+      RandomPolyhedronOptions polyhedron_options;
+      double polyhedron_fraction = shape == "polyhedron" ? 1.0 : 0.0;
+      if (shape != "sphere") polyhedron_options = parse_random_polyhedron_options(entry);
+      if (shape == "mix") polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
+      // Per grain, its own seed: whether it is a polyhedron, its shape and its orientation do not
+      // depend on the other grains, so grains can be made in parallel and in any order.
+      const std::uint64_t shape_stream = derive_seed(seed, 0x5348415045ULL);
+      std::vector<GrainSpec> made(packed.size());
+      std::string failure;
+#pragma omp parallel for schedule(dynamic, 64) if (shape != "sphere" && packed.size() > 256)
       for (std::size_t k = 0; k < packed.size(); ++k) {
-        GrainSpec grain;
+        GrainSpec& grain = made[k];
         grain.radius = packed[k].radius;
         grain.position = packed[k].position;
         grain.velocity = velocity;
@@ -837,8 +1041,23 @@ class SceneParser {
         grain.origin.generator = static_cast<int>(g);
         grain.origin.ordinal = k;
         grain.origin.node = entry.anchor();
-        add_grain(grain);
+        if (polyhedron_fraction <= 0.0) continue;
+        const std::uint64_t grain_seed = derive_seed(shape_stream, k);
+        std::mt19937_64 rng(grain_seed);
+        if (uniform_01(rng) >= polyhedron_fraction) continue;
+        try {
+          PlacedPolyhedron placed = random_polyhedron_in_ball(packed[k], polyhedron_options, rng());
+          grain.position = placed.position;
+          grain.orientation = placed.orientation;
+          grain.radius = placed.shape.bounding_radius;
+          grain.polyhedron = std::make_shared<const ConvexPolyhedron>(std::move(placed.shape));
+        } catch (const std::exception& error) {
+#pragma omp critical(rubble_scene_polyhedra)
+          if (failure.empty()) failure = "grain " + std::to_string(k) + ": cannot make its polyhedron: " + error.what();
+        }
       }
+      if (!failure.empty()) entry.fail_table(failure);
+      for (const GrainSpec& grain : made) add_grain(grain);
     }
   }
 
@@ -900,6 +1119,23 @@ class SceneParser {
       const Mat3 to_body = wall.orientation.toRotationMatrix().transpose();
       for (const GrainSpec& grain : grains_) {
         const double tolerance = allowed_initial_overlap * grain.radius;
+        if (grain.polyhedron) {
+          // A polyhedron is checked by its vertices: none may be behind a plane or inside a box.
+          const Mat3 rotation = grain.orientation.toRotationMatrix();
+          for (const Vec3& vertex : grain.polyhedron->vertices) {
+            const Vec3 x = grain.position + rotation * vertex;
+            const bool bad = wall.is_plane
+                                 ? wall.normal.dot(x - wall.position) < -tolerance
+                                 : ((to_body * (x - wall.position)).cwiseAbs() - wall.half_extents).maxCoeff() < -tolerance;
+            if (bad) {
+              root_.fail(grain.origin.node, grain_key(grain.origin),
+                         grain_label(grain.origin) + " (a polyhedron centred at " + show_vec3(grain.position) +
+                             ") has a vertex at " + show_vec3(x) + (wall.is_plane ? " behind plane wall " : " inside box wall ") +
+                             wall.path + ": expected every grain entirely on the inner side of the walls");
+            }
+          }
+          continue;
+        }
         if (wall.is_plane) {
           const double distance = wall.normal.dot(grain.position - wall.position);
           if (distance < grain.radius - tolerance) {
@@ -956,6 +1192,9 @@ class SceneParser {
             for (; it != entries.end() && it->cell == key.cell; ++it) {
               if (it->grain <= e.grain) continue;
               const GrainSpec& b = grains_[it->grain];
+              // Polyhedra: their bounding spheres may overlap without the solids touching, and
+              // generators never make overlapping grains, so only sphere pairs are checked.
+              if (a.polyhedron || b.polyhedron) continue;
               const double overlap = a.radius + b.radius - (a.position - b.position).norm();
               if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
                 root_.fail(b.origin.node, grain_key(b.origin),
@@ -974,7 +1213,13 @@ class SceneParser {
   void build() {
     Model& model = scene_.model;
     State& state = scene_.state;
-    for (const GrainSpec& g : grains_) add_sphere(model, g.radius, g.material);
+    for (const GrainSpec& g : grains_) {
+      if (g.polyhedron) {
+        add_polyhedron_grain(model, *g.polyhedron, g.material);
+      } else {
+        add_sphere(model, g.radius, g.material);
+      }
+    }
     for (const WallSpec& w : walls_) {
       if (w.is_plane) {
         add_plane_wall(model, w.normal, w.material);
@@ -1064,100 +1309,50 @@ Scene load_scene_file(const std::filesystem::path& path) {
 }
 
 std::string default_scene_toml() {
-  // The number of grains (count, with region_min/region_max and the walls sized to hold them) and
-  // the simulated time (end_time) are the two knobs that set the run time of `rubble run`.
+  // The accretion study's smallest classic case (seed 001, /work/shared/accretion-study.md) run
+  // to rest: about 3000 steps, a minute or two of CPU on 2 cores (examples/README.md). The number
+  // of grains (cells_per_side^3) and the rest criterion are the knobs that set the run time.
   return R"(# rubble scene file: the built-in default scene (`rubble run` without a scene file).
-# About a thousand spheres, released on a loose grid, fall under gravity into an open box and
-# settle. Reference: docs/scene-file.md. SI units throughout.
-name = "box-deposit"
+# The accretion study (seed 001): 10^3 spheres of diameter 7.5-10 m, uniform in volume fraction,
+# one per cell of a cubic grid of mesh d_max = 10 m, at rest, collapse under their own gravity
+# (Barnes-Hut tree) into a rubble pile; no friction, no restitution. The run stops when the
+# grains are at rest. Reference: docs/scene-file.md. SI units throughout.
+name = "accretion-1000"
 seed = 1
 
 [time]
-dt = 1e-4        # s, time step
-theta = 0.5      # theta-method parameter in [0.5, 1]
-end_time = 1.5   # s of simulated time
-
-[solver]
-tolerance = 1e-4
-max_iterations = 1000
-relaxation = 1.0
-warm_start = true
-penetration_correction = 0.2
-max_correction_velocity = 1.0   # m/s
-
-[detection]
-alert_distance = 0.0   # m, 0 = automatic (5% of the smallest grain radius)
+dt = "auto"                    # 1% of d_min over the free-fall velocity sqrt(2GM/R): 1.4 s here
+end_time = 12000.0             # s, the latest end (7 characteristic times 1/sqrt(G rho))
+until = "rest"                 # stop earlier, as soon as the grains are at rest:
+rest_kinetic_energy = "auto"   # mean kinetic energy per grain below 1e-3 x 1/2 m v_ff^2 ...
+rest_duration = "auto"         # ... for half a characteristic time 1/sqrt(G rho)
 
 [gravity]
-type = "uniform"
-acceleration = [0.0, 0.0, -9.81]   # m/s^2
+type = "tree"
+G = 6.674e-11
+theta = 0.5
+order = 2
 
 [output]
-directory = "box-deposit-output"
-snapshot_interval = 0.01   # s of simulated time between snapshots
-progress_interval = 2.0    # s of wall time between progress lines
-vtk = true
+directory = "accretion-1000-output"
+snapshot_interval = 60.0   # s of simulated time between snapshots
+progress_interval = 5.0    # s of wall time between progress lines
 
 [[materials]]
-name = "glass"
-density = 2500.0   # kg/m^3
-
-[[materials]]
-name = "steel"
-density = 7800.0   # kg/m^3 (walls do not move: only the name matters for them)
+name = "regolith"
+density = 5164.0   # kg/m^3, as printed in the paper
 
 [[contact_laws]]
-materials = ["glass", "glass"]
-friction = 0.3
+materials = ["regolith", "regolith"]
+friction = 0.0
 restitution = 0.0
 
-[[contact_laws]]
-materials = ["glass", "steel"]
-friction = 0.3
-restitution = 0.0
-
-# An open box 1.2 m x 1.2 m: a floor and four sides, normals pointing inwards.
-[[walls]]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-material = "steel"
-
-[[walls]]
-type = "plane"
-point = [-0.6, 0.0, 0.0]
-normal = [1.0, 0.0, 0.0]
-material = "steel"
-
-[[walls]]
-type = "plane"
-point = [0.6, 0.0, 0.0]
-normal = [-1.0, 0.0, 0.0]
-material = "steel"
-
-[[walls]]
-type = "plane"
-point = [0.0, -0.6, 0.0]
-normal = [0.0, 1.0, 0.0]
-material = "steel"
-
-[[walls]]
-type = "plane"
-point = [0.0, 0.6, 0.0]
-normal = [0.0, -1.0, 0.0]
-material = "steel"
-
-# 1000 spheres of radius 4-6 cm, one per cell of a grid of 13.2 cm cells (9 x 9 per layer),
-# filled from the floor up (13 layers, up to about 1.7 m high).
 [[generators]]
-type = "box_deposit"
-count = 1000
-radius_min = 0.04
-radius_max = 0.06
-distribution = "uniform_radius"
-region_min = [-0.6, -0.6, 0.0]
-region_max = [0.6, 0.6, 2.0]
-material = "glass"
+type = "cubic_grid"
+cells_per_side = 10
+radius_min = 3.75
+radius_max = 5.0
+distribution = "uniform_volume_fraction"
 )";
 }
 
@@ -1274,8 +1469,25 @@ std::string scene_to_toml(const Scene& scene) {
         out << "\nvelocity = " << format_vec3(state.velocity[body])
             << "\nangular_velocity = " << format_vec3(state.angular_velocity[body]) << "\n";
         break;
-      case ShapeKind::polyhedron:
-        throw std::invalid_argument("scene_to_toml: polyhedral grains cannot be written to scene files yet");
+      case ShapeKind::polyhedron: {
+        // Body-frame vertices and faces (the shape's principal frame, centroid at the origin), so
+        // position and orientation are the state's. Merged faces may be bent by up to the
+        // generator's merge angle, hence the convexity tolerance.
+        const ConvexPolyhedron& shape = model.polyhedra[index];
+        out << "\n[[bodies]]\nshape = \"polyhedron\"\nposition = " << format_vec3(state.position[body])
+            << "\norientation = " << toml_quaternion(state.orientation[body]) << "\nvelocity = "
+            << format_vec3(state.velocity[body]) << "\nangular_velocity = " << format_vec3(state.angular_velocity[body])
+            << "\nconvexity_tolerance = 0.05\nvertices = [";
+        for (std::size_t v = 0; v < shape.vertices.size(); ++v) out << (v ? ", " : "") << format_vec3(shape.vertices[v]);
+        out << "]\nfaces = [";
+        for (std::size_t f = 0; f < shape.faces.size(); ++f) {
+          out << (f ? ", [" : "[");
+          for (std::size_t k = 0; k < shape.faces[f].size(); ++k) out << (k ? ", " : "") << shape.faces[f][k];
+          out << "]";
+        }
+        out << "]\n";
+        break;
+      }
     }
     out << "material = " << material_name(model.material[body]) << "\n";
   }

@@ -38,18 +38,19 @@ Scene load_scene_file(const std::filesystem::path& path);
 /// relative paths). Throws SceneError.
 Scene parse_scene(std::string_view toml_text, const std::string& source_name);
 
-/// The built-in scene `rubble run` uses without a scene file: about a thousand spheres deposited
-/// under uniform gravity into an open box. Equal to parse_scene(default_scene_toml(), ...).
+/// The built-in scene `rubble run` uses without a scene file: the accretion of a thousand
+/// spheres under self-gravity, run until they are at rest (seed 001's set-up). Equal to
+/// parse_scene(default_scene_toml(), ...).
 Scene default_scene();
 
 /// The built-in scene as scene-file text (what `rubble run --print-default-scene` prints;
-/// examples/box-deposit.toml holds the same text).
+/// examples/accretion-1000.toml holds the same text).
 std::string default_scene_toml();
 
 /// Writes a scene as scene-file text with every grain and wall listed explicitly (generators
 /// expanded), such that parse_scene(scene_to_toml(s)) gives back the same model and state when
-/// grains come before walls in s (as parse_scene orders them). Throws std::invalid_argument for
-/// what the format cannot express yet (polyhedral grains).
+/// grains come before walls in s (as parse_scene orders them). Polyhedral grains are written with
+/// their body-frame vertices and faces (read back up to round-off in the mass properties).
 std::string scene_to_toml(const Scene& scene);
 
 }  // namespace rubble

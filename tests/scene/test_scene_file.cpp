@@ -1,7 +1,8 @@
 // Tests of simulation/scene_file.cpp: good scenes give the model, state and options they describe
-// (masses against 4/3 pi r^3 rho), the default scene parses and matches examples/box-deposit.toml,
+// (masses against 4/3 pi r^3 rho), the default scene parses and matches examples/accretion-1000.toml,
 // scene_to_toml round-trips bit for bit, and every file of the corpus bad/*.toml is rejected with
 // a SceneError carrying the expected message, the file name and the line.
+#include "simulation/run_control.hpp"
 #include "simulation/scene_file.hpp"
 
 #include <gtest/gtest.h>
@@ -209,21 +210,25 @@ distribution = "uniform_volume_fraction"
   }
 }
 
-TEST(DefaultScene, ParsesToAThousandSpheresInAnOpenBox) {
+TEST(DefaultScene, IsTheThousandSphereAccretionToRest) {
   const Scene scene = default_scene();
-  EXPECT_EQ(scene.name, "box-deposit");
-  ASSERT_EQ(scene.model.body_count(), 1005u);
+  EXPECT_EQ(scene.name, "accretion-1000");
+  ASSERT_EQ(scene.model.body_count(), 1000u);
   EXPECT_EQ(scene.model.spheres.size(), 1000u);
-  EXPECT_EQ(scene.model.planes.size(), 5u);
-  EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::uniform);
-  EXPECT_EQ(scene.run.step.integrator.time_step, 1e-4);
+  EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::self);
+  EXPECT_EQ(scene.run.step.gravity.self_gravity.method, gravity::Method::tree);
+  EXPECT_TRUE(scene.run.automatic_time_step);
+  EXPECT_EQ(scene.run.step.integrator.time_step,
+            automatic_time_step(scene.model, scene.state, scene.run.step.gravity).time_step);
+  EXPECT_TRUE(scene.run.until_rest);
+  EXPECT_GT(scene.run.rest.mean_kinetic_energy, 0.0);
+  EXPECT_GT(scene.run.rest.duration, 0.0);
   for (std::size_t i = 0; i < 1000; ++i) {
-    const Vec3& x = scene.state.position[i];
     const double r = scene.model.sphere_radius(i);
-    EXPECT_GE(r, 0.04);
-    EXPECT_LE(r, 0.06);
-    EXPECT_LE(std::max(std::abs(x.x()), std::abs(x.y())) + r, 0.6 + 1e-12);
-    EXPECT_GE(x.z() - r, -1e-12);
+    EXPECT_GE(r, 3.75);
+    EXPECT_LE(r, 5.0);
+    EXPECT_LE(scene.state.position[i].cwiseAbs().maxCoeff() + r, 50.0 + 1e-9);
+    EXPECT_EQ(scene.state.velocity[i], Vec3::Zero());
   }
 }
 
@@ -235,9 +240,9 @@ std::string read_text(const std::filesystem::path& path) {
 }
 
 TEST(DefaultScene, IsTheExampleFileAndLoadsFromIt) {
-  const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "box-deposit.toml";
+  const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion-1000.toml";
   EXPECT_EQ(read_text(example), default_scene_toml()) << "regenerate with: rubble run --print-default-scene > "
-                                                         "examples/box-deposit.toml";
+                                                         "examples/accretion-1000.toml";
   const Scene from_file = load_scene_file(example);
   const Scene built_in = default_scene();
   ASSERT_EQ(from_file.state.body_count(), built_in.state.body_count());
@@ -317,6 +322,174 @@ TEST(SceneToToml, RoundTripsBitForBit) {
     expect_same_scene(original, again);
     EXPECT_EQ(scene_to_toml(again), text);  // and writing is stable
   }
+}
+
+/// A minimal self-gravitating scene around one generator table (its keys in `generator`).
+std::string cloud_scene(const std::string& generator, const std::string& time = "dt = \"auto\"\nend_time = 9000.0\n",
+                        int seed = 1) {
+  return "seed = " + std::to_string(seed) + "\n[time]\n" + time +
+         "[gravity]\ntype = \"tree\"\n[[materials]]\nname = \"rock\"\ndensity = 5164.0\n"
+         "[default_contact_law]\nfriction = 0.0\n[[generators]]\n" + generator;
+}
+
+TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
+  const std::string grid = "type = \"cubic_grid\"\ncells_per_side = 4\nradius_min = 3.75\nradius_max = 5.0\n";
+  const Scene automatic =
+      parse_scene(cloud_scene(grid, "dt = \"auto\"\nend_time = 9000.0\nuntil = \"rest\"\n"), "auto.toml");
+  const SceneScales scales = scene_scales(automatic.model, automatic.state, automatic.run.step.gravity);
+  EXPECT_TRUE(automatic.run.automatic_time_step);
+  EXPECT_EQ(automatic.run.step.integrator.time_step,
+            automatic_time_step(automatic.model, automatic.state, automatic.run.step.gravity).time_step);
+  EXPECT_TRUE(automatic.run.until_rest);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.mean_kinetic_energy, automatic_rest_criterion(scales).mean_kinetic_energy);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.duration, automatic_rest_criterion(scales).duration);
+  const Scene given = parse_scene(
+      cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_kinetic_energy = 2.5\nrest_duration = 0\n"),
+      "given.toml");
+  EXPECT_FALSE(given.run.automatic_time_step);
+  EXPECT_EQ(given.run.step.integrator.time_step, 0.5);
+  EXPECT_EQ(given.run.rest.mean_kinetic_energy, 2.5);
+  EXPECT_EQ(given.run.rest.duration, 0.0);
+  const Scene fixed = parse_scene(cloud_scene(grid, "dt = 0.5\nend_time = 100.0\n"), "fixed.toml");
+  EXPECT_FALSE(fixed.run.until_rest);
+  // Written back, "auto" stays "auto" (and so gives the same step again).
+  const std::string text = scene_to_toml(automatic);
+  EXPECT_NE(text.find("dt = \"auto\""), std::string::npos);
+  EXPECT_NE(text.find("until = \"rest\""), std::string::npos);
+  EXPECT_EQ(parse_scene(text, "again.toml").run.step.integrator.time_step, automatic.run.step.integrator.time_step);
+}
+
+TEST(TimeControl, AutoStepWithoutAnyTimeScaleIsASceneError) {
+  const std::string text = "[time]\ndt = \"auto\"\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
+                           "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"sphere\"\nradius = 1.0\n"
+                           "position = [0, 0, 0]\n";
+  try {
+    parse_scene(text, "still.toml");
+    FAIL() << "expected a SceneError";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.key, "time.dt");
+    EXPECT_NE(error.message.find("nothing sets a time scale"), std::string::npos) << error.message;
+  }
+}
+
+/// Index (i, j, k) of the cubic-grid cell of grain `ordinal` (x fastest) and that cell's lower corner.
+Vec3 cell_corner(std::size_t ordinal, std::size_t k, double cell) {
+  const Vec3 ijk(static_cast<double>(ordinal % k), static_cast<double>((ordinal / k) % k),
+                 static_cast<double>(ordinal / (k * k)));
+  return Vec3::Constant(-0.5 * static_cast<double>(k) * cell) + cell * ijk;
+}
+
+// The paper's polyhedra: every vertex of every grain inside its own cell of the grid (so no two
+// grains overlap), circumscribed diameters in [d_min, d_max], n_v in [10, 70] before merging.
+TEST(PolyhedronGenerator, CubicGridPolyhedraStayInsideTheirCells) {
+  const std::string grid = "type = \"cubic_grid\"\ncells_per_side = 4\nshape = \"polyhedron\"\nradius_min = 3.75\n"
+                           "radius_max = 5.0\ndistribution = \"uniform_volume_fraction\"\n";
+  const Scene scene = parse_scene(cloud_scene(grid), "poly.toml");
+  ASSERT_EQ(scene.model.body_count(), 64u);
+  ASSERT_EQ(scene.model.polyhedra.size(), 64u);
+  for (std::size_t b = 0; b < 64; ++b) {
+    ASSERT_EQ(scene.model.shape_kind[b], ShapeKind::polyhedron);
+    const ConvexPolyhedron& shape = scene.model.polyhedra[static_cast<std::size_t>(scene.model.shape_index[b])];
+    const Vec3 corner = cell_corner(b, 4, 10.0);
+    std::vector<Vec3> world;
+    for (const Vec3& v : shape.vertices) {
+      const Vec3 x = scene.state.position[b] + scene.state.orientation[b] * v;
+      world.push_back(x);
+      for (int axis = 0; axis < 3; ++axis) {
+        EXPECT_GE(x[axis], corner[axis] - 1e-9) << b;
+        EXPECT_LE(x[axis], corner[axis] + 10.0 + 1e-9) << b;
+      }
+    }
+    double diameter = 0.0;  // largest vertex distance <= circumscribed diameter
+    for (const Vec3& p : world) {
+      for (const Vec3& q : world) diameter = std::max(diameter, (p - q).norm());
+    }
+    EXPECT_LE(diameter, 10.0 + 1e-9);
+    EXPECT_GE(diameter, 0.5 * 7.5);  // elongation and platyness >= 0.5 keep it at least half as wide
+    EXPECT_LE(shape.vertices.size(), 70u);
+  }
+}
+
+TEST(PolyhedronGenerator, MixFractionAndSameSeedSameFile) {
+  const std::string mix = "type = \"cubic_grid\"\ncells_per_side = 8\nshape = \"mix\"\npolyhedron_fraction = 0.25\n"
+                          "radius_min = 3.75\nradius_max = 5.0\n";
+  const Scene scene = parse_scene(cloud_scene(mix), "mix.toml");
+  // 512 grains, each a polyhedron with probability 1/4: 128 +- 10 (binomial sd); tolerance 4 sd.
+  EXPECT_NEAR(static_cast<double>(scene.model.polyhedra.size()), 128.0, 40.0);
+  EXPECT_EQ(scene.model.polyhedra.size() + scene.model.spheres.size(), 512u);
+  // Written out twice from the same seed: the same file; another seed: another file.
+  const std::string small = "type = \"cubic_grid\"\ncells_per_side = 3\nshape = \"mix\"\npolyhedron_fraction = 0.5\n"
+                            "radius_min = 3.75\nradius_max = 5.0\n";
+  const std::string a = scene_to_toml(parse_scene(cloud_scene(small), "a.toml"));
+  const std::string b = scene_to_toml(parse_scene(cloud_scene(small), "a.toml"));
+  const std::string c = scene_to_toml(parse_scene(cloud_scene(small, "dt = \"auto\"\nend_time = 9000.0\n", 2), "a.toml"));
+  EXPECT_TRUE(a == b) << "the same seed wrote two different files";
+  EXPECT_TRUE(a != c) << "another seed wrote the same file";
+  // The written polyhedra read back: same shapes (vertices bit for bit), positions and masses
+  // to round-off (the mass properties are recomputed from the merged faces).
+  const Scene original = parse_scene(cloud_scene(small), "a.toml");
+  const Scene again = parse_scene(a, "written.toml");
+  ASSERT_EQ(again.model.body_count(), original.model.body_count());
+  for (std::size_t i = 0; i < original.model.body_count(); ++i) {
+    EXPECT_EQ(again.model.shape_kind[i], original.model.shape_kind[i]);
+    EXPECT_NEAR(again.model.mass[i], original.model.mass[i], 1e-2 * original.model.mass[i]) << i;
+    EXPECT_LT((again.state.position[i] - original.state.position[i]).norm(), 1e-2) << i;
+  }
+}
+
+TEST(PolyhedronBodies, RandomAndListedVertices) {
+  const std::string text = R"(
+[time]
+dt = 1e-3
+end_time = 1.0
+[[materials]]
+name = "rock"
+density = 2000.0
+[default_contact_law]
+friction = 0.5
+[[bodies]]
+shape = "polyhedron"
+diameter = 2.0
+position = [0, 0, 0]
+[[bodies]]
+shape = "polyhedron"
+position = [5, 0, 0]
+vertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]]
+faces = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6], [1, 2, 6, 5], [0, 4, 7, 3]]
+)";
+  const Scene scene = parse_scene(text, "bodies.toml");
+  ASSERT_EQ(scene.model.polyhedra.size(), 2u);
+  // The unit cube listed with its corner at `position`: centroid at position + (0.5, 0.5, 0.5),
+  // mass = density x 1 m^3, inertia m (1 + 1) / 12 about each axis.
+  EXPECT_NEAR(scene.model.mass[1], 2000.0, 1e-9);
+  EXPECT_LT((scene.state.position[1] - Vec3(5.5, 0.5, 0.5)).norm(), 1e-12);
+  EXPECT_NEAR(scene.model.principal_inertia[1].x(), 2000.0 / 6.0, 1e-9);
+  EXPECT_LE(scene.model.bounding_radius[0], 2.0);
+  const std::string missing = "[time]\ndt = 1e-3\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
+                              "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"polyhedron\"\n"
+                              "position = [0, 0, 0]\n";
+  EXPECT_THROW(parse_scene(missing, "missing.toml"), SceneError);
+}
+
+TEST(Generators, SphereCloudMonodisperseAndBins) {
+  const Scene cloud = parse_scene(
+      cloud_scene("type = \"sphere_cloud\"\ncount = 300\nvolume_fraction = 0.1\ndistribution = \"monodisperse\"\n"
+                  "radius = 1.0\ncenter = [1, 2, 3]\n"),
+      "cloud.toml");
+  ASSERT_EQ(cloud.model.body_count(), 300u);
+  const double ball = std::cbrt(300.0 / 0.1);  // N r^3 / nu with r = 1
+  for (std::size_t i = 0; i < 300; ++i) {
+    EXPECT_EQ(cloud.model.sphere_radius(i), 1.0);
+    EXPECT_LE((cloud.state.position[i] - Vec3(1, 2, 3)).norm() + 1.0, ball * (1 + 1e-12));
+  }
+  const Scene binned = parse_scene(
+      cloud_scene("type = \"cubic_grid\"\ncells_per_side = 5\ndistribution = \"bins\"\nbins = [[8.0, 1], [10.0, 0]]\n"),
+      "bins.toml");
+  for (std::size_t i = 0; i < 125; ++i) EXPECT_EQ(binned.model.sphere_radius(i), 4.0);
+  EXPECT_THROW(parse_scene(cloud_scene("type = \"sphere_cloud\"\ncount = 10\nradius = 1.0\n"
+                                       "distribution = \"monodisperse\"\n"),
+                           "neither.toml"),
+               SceneError);
 }
 
 TEST(SceneError, WhatIsFileLineKeyMessage) {
