@@ -27,10 +27,16 @@ struct BodyVelocities {
   std::vector<Vec3> angular;  ///< rad/s, world frame
 };
 
+/// Torque-free rotation over one step of a body with principal inertia `inertia`: the angular
+/// velocity at t_{n+1}, expressed in the body frame at t_n, such that the world angular momentum is
+/// conserved exactly when the orientation is advanced by exp(h (w_n + w_{n+1})/2) (theta = 0.5).
+/// This is the gyroscopic term of Euler's equations, taken implicitly.
+Vec3 torque_free_rotation(const Vec3& inertia, const Vec3& omega, double time_step);
+
 /// Free velocity: the velocity at the end of the step if no contact acted.
 /// `force` and `torque` (world frame, N and N m) are the external actions at t + theta h, one per
-/// body; `torque` may be empty. For non-spherical inertia the gyroscopic torque -w x (I w) is added,
-/// evaluated at the start of the step in the body frame.
+/// body; `torque` may be empty. For non-spherical inertia the rotation is advanced by
+/// `torque_free_rotation` (implicit gyroscopic term), then the torque impulse is added.
 void compute_free_velocity(const Model& model, const State& state, std::span<const Vec3> force,
                            std::span<const Vec3> torque, double time_step, BodyVelocities& free_velocity);
 
