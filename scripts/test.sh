@@ -20,3 +20,10 @@ cmake --build build/sanitize -j "$jobs"
 echo "== tests under sanitizers (label 'slow' excluded) =="
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build/sanitize -j "$jobs" --output-on-failure --timeout 1800 -LE slow
+# Every sanitizer report fails the run: the libraries are built with -fno-sanitize-recover=all
+# (UBSan aborts at the first report), ASan aborts on its first error and LeakSanitizer makes the
+# process exit non-zero; the tests that run the `rubble` binary check its exit code and
+# tests/apps/expect.sh also fails on any "runtime error:" or sanitizer line in its output.
+
+echo "== fuzz the scene parser (libFuzzer + ASan + UBSan, 60 s) =="
+./scripts/fuzz.sh 60
