@@ -247,7 +247,7 @@ bool closest_point_on_polyhedron(const ConvexPolyhedron& shape, const Vec3& poin
   return true;
 }
 
-double plane_separation(const PlacedPolyhedron& a, const PlacedPolyhedron& b, const Vec3& normal) {
+double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3& normal) {
   double max_a = -infinity;
   const Vec3 na = a.rotation.transpose() * normal;
   for (const Vec3& v : a.shape->vertices) max_a = std::max(max_a, na.dot(v));
@@ -257,7 +257,7 @@ double plane_separation(const PlacedPolyhedron& a, const PlacedPolyhedron& b, co
   return (min_b + normal.dot(b.position)) - (max_a + normal.dot(a.position));
 }
 
-CommonPlane find_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron& pb, const Vec3* initial_normal,
+CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, const Vec3* initial_normal,
                               double cutoff) {
   const ConvexPolyhedron& A = *pa.shape;
   const ConvexPolyhedron& B = *pb.shape;

@@ -26,7 +26,7 @@
 namespace rubble {
 
 /// A convex polyhedron placed in the world.
-struct PlacedPolyhedron {
+struct PolyhedronInWorld {
   const ConvexPolyhedron* shape = nullptr;  ///< body-frame shape
   Vec3 position = Vec3::Zero();             ///< m, world position of the body origin (centroid)
   Mat3 rotation = Mat3::Identity();         ///< body frame -> world frame
@@ -52,7 +52,7 @@ struct CommonPlane {
 };
 
 /// The separation f(n) = min_B n.y - max_A n.x along the world unit vector n (from A to B).
-double plane_separation(const PlacedPolyhedron& a, const PlacedPolyhedron& b, const Vec3& normal);
+double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3& normal);
 
 /// The common plane of A and B. `initial_normal` (world, unit; may be null, then the line of
 /// centres is used) warm-starts the search; when the bodies are apart by at least `cutoff`
@@ -60,7 +60,7 @@ double plane_separation(const PlacedPolyhedron& a, const PlacedPolyhedron& b, co
 /// overlapping, gap = -(penetration depth) and normal its direction; when apart, gap = distance
 /// and normal the closest-points direction. If the initial normal is within 1e-9 x size of the
 /// optimum it is kept, so a persistent contact does not flip between equivalent planes.
-CommonPlane find_common_plane(const PlacedPolyhedron& a, const PlacedPolyhedron& b, const Vec3* initial_normal,
+CommonPlane find_common_plane(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3* initial_normal,
                               double cutoff);
 
 /// Closest point of a polyhedron to `point` (both in the body frame), by GJK. Returns false when

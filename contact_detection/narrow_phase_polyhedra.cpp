@@ -1,6 +1,7 @@
 #include "contact_detection/narrow_phase_polyhedra.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -29,7 +30,7 @@ std::uint32_t edge_code(int i, int j, std::size_t n) {
   return kind_edge | static_cast<std::uint32_t>((lo * n + hi) & index_mask);
 }
 
-PlacedPolyhedron placed(const Model& model, const State& state, std::uint32_t body) {
+PolyhedronInWorld placed(const Model& model, const State& state, std::uint32_t body) {
   return {&model.polyhedra[static_cast<std::size_t>(model.shape_index[body])], state.position[body],
           state.orientation[body].toRotationMatrix()};
 }
@@ -198,7 +199,7 @@ void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std
 /// one inside the other, crossings of their edges), and each point of the intersection gets
 /// its local gap from the two bodies' surfaces above and below it. Vertex-face gives 1 point,
 /// edge-edge 1, edge-face 2, face-face the clipped polygon, reduced to <= 4 points.
-void contacts_on_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron& pb, std::uint32_t body_a,
+void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, std::uint32_t body_a,
                               std::uint32_t body_b, const Vec3& normal_world, double gap, double alert_distance,
                               ContactList& contacts) {
   const ConvexPolyhedron& A = *pa.shape;
@@ -220,16 +221,28 @@ void contacts_on_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron
 
   // Cap depth: a local gap below the alert distance needs depth_a + depth_b < alert - gap.
   const double linear_tolerance = 1e-7 * size;
-  const double depth = std::max(alert_distance - gap, 0.0) + linear_tolerance;
-  std::vector<CapVertex> cap_a, cap_b;
-  for (std::size_t i = 0; i < A.vertices.size(); ++i) {
-    if (n.dot(A.vertices[i]) >= top_a - depth) cap_a.push_back({Vec2(t.dot(A.vertices[i]), s.dot(A.vertices[i])), static_cast<int>(i)});
-  }
-  for (std::size_t i = 0; i < vb.size(); ++i) {
-    if (n.dot(vb[i]) <= bottom_b + depth) cap_b.push_back({Vec2(t.dot(vb[i]), s.dot(vb[i])), static_cast<int>(i)});
-  }
-  const std::vector<CapVertex> polygon_a = hull_2d(std::move(cap_a), linear_tolerance);
-  const std::vector<CapVertex> polygon_b = hull_2d(std::move(cap_b), linear_tolerance);
+  // Features closer than this in the plane count as coincident, and a vertex this close outside
+  // the other polygon still counts as inside: stacked, aligned faces then keep the same contact
+  // ids (hence warm starts) while they creep by less than 1e-3 of the grain size.
+  const double feature_tolerance = 1e-3 * size;
+  // Two sets of caps (vertices within a depth of the body's extreme along n, projected on the
+  // plane, convex hull): the support features (depth ~ 0), whose overlap holds the deepest point
+  // (at the optimal plane the supports' projections meet), and the alert caps, which add the
+  // points of a nearly flush face that may close within the alert distance. Alert caps are
+  // measured as if the bodies touched (gap clamped at 0), so a deep overlap does not turn them
+  // into curved patches whose hull hides their lowest vertices.
+  auto caps = [&](double depth) {
+    std::vector<CapVertex> cap_a, cap_b;
+    for (std::size_t i = 0; i < A.vertices.size(); ++i) {
+      if (n.dot(A.vertices[i]) >= top_a - depth) cap_a.push_back({Vec2(t.dot(A.vertices[i]), s.dot(A.vertices[i])), static_cast<int>(i)});
+    }
+    for (std::size_t i = 0; i < vb.size(); ++i) {
+      if (n.dot(vb[i]) <= bottom_b + depth) cap_b.push_back({Vec2(t.dot(vb[i]), s.dot(vb[i])), static_cast<int>(i)});
+    }
+    return std::make_pair(hull_2d(std::move(cap_a), linear_tolerance), hull_2d(std::move(cap_b), linear_tolerance));
+  };
+  const auto support_polygons = caps(linear_tolerance);
+  const auto alert_polygons = caps(std::max(alert_distance - std::max(gap, 0.0), 0.0) + linear_tolerance);
 
   // Surfaces above/below a plane point (u, v): A's upper surface is the lower envelope of its
   // faces turned towards n, B's lower surface the upper envelope of its faces turned against n.
@@ -243,15 +256,17 @@ void contacts_on_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron
     }
     return z;
   };
+  // Each face turned against n, as (m.t, m.s, m.n, offset) in A's frame, computed once.
+  std::vector<std::array<double, 4>> faces_down;
+  for (std::size_t f = 0; f < B.face_normals.size(); ++f) {
+    const Vec3 m = rotation * B.face_normals[f];
+    const double down = m.dot(n);
+    if (down >= -1e-9) continue;
+    faces_down.push_back({m.dot(t), m.dot(s), down, B.face_offsets[f] + m.dot(translation)});
+  }
   auto height_b = [&](const Vec2& p) {
     double z = -std::numeric_limits<double>::infinity();
-    for (std::size_t f = 0; f < B.face_normals.size(); ++f) {
-      const Vec3 m = rotation * B.face_normals[f];
-      const double down = m.dot(n);
-      if (down >= -1e-9) continue;
-      const double offset = B.face_offsets[f] + m.dot(translation);
-      z = std::max(z, (offset - p.x() * m.dot(t) - p.y() * m.dot(s)) / down);
-    }
+    for (const auto& m : faces_down) z = std::max(z, (m[3] - p.x() * m[0] - p.y() * m[1]) / m[2]);
     return z;
   };
   // The faces most turned towards each other name the "face" side of vertex-face points.
@@ -276,62 +291,102 @@ void contacts_on_common_plane(const PlacedPolyhedron& pa, const PlacedPolyhedron
   std::vector<Candidate> candidates;
   auto add = [&](const Vec2& p, double za, double zb, std::uint32_t fa, std::uint32_t fb) {
     for (const Candidate& c : candidates) {
-      if ((c.p - p).norm() <= linear_tolerance) return;  // already there (coincident features)
+      if ((c.p - p).norm() <= feature_tolerance) return;  // already there (coincident features)
     }
     candidates.push_back({p, zb - za, za, zb, fa, fb});
   };
-  for (const CapVertex& c : polygon_a) {
-    if (inside(polygon_b, c.p, linear_tolerance)) {
-      add(c.p, n.dot(A.vertices[static_cast<std::size_t>(c.vertex)]), height_b(c.p), vertex_code(c.vertex),
-          face_code(face_b));
-    }
-  }
-  for (const CapVertex& c : polygon_b) {
-    if (inside(polygon_a, c.p, linear_tolerance)) {
-      add(c.p, height_a(c.p), n.dot(vb[static_cast<std::size_t>(c.vertex)]), face_code(face_a),
-          vertex_code(c.vertex));
-    }
-  }
-  const std::size_t edges_a = polygon_a.size() < 2 ? 0 : (polygon_a.size() == 2 ? 1 : polygon_a.size());
-  const std::size_t edges_b = polygon_b.size() < 2 ? 0 : (polygon_b.size() == 2 ? 1 : polygon_b.size());
-  for (std::size_t i = 0; i < edges_a; ++i) {
-    const CapVertex& a0 = polygon_a[i];
-    const CapVertex& a1 = polygon_a[(i + 1) % polygon_a.size()];
-    for (std::size_t j = 0; j < edges_b; ++j) {
-      const CapVertex& b0 = polygon_b[j];
-      const CapVertex& b1 = polygon_b[(j + 1) % polygon_b.size()];
-      Vec2 at;
-      double ta = 0.0;
-      if (!segments_cross(a0.p, a1.p, b0.p, b1.p, at, ta)) continue;
-      // Heights along the two edges, interpolated between their end vertices.
-      const double za = (1.0 - ta) * n.dot(A.vertices[static_cast<std::size_t>(a0.vertex)]) +
-                        ta * n.dot(A.vertices[static_cast<std::size_t>(a1.vertex)]);
-      const Vec2 eb = b1.p - b0.p;
-      const double tb = std::clamp((at - b0.p).dot(eb) / eb.squaredNorm(), 0.0, 1.0);
-      const double zb = (1.0 - tb) * n.dot(vb[static_cast<std::size_t>(b0.vertex)]) +
-                        tb * n.dot(vb[static_cast<std::size_t>(b1.vertex)]);
-      add(at, za, zb, edge_code(a0.vertex, a1.vertex, A.vertices.size()),
-          edge_code(b0.vertex, b1.vertex, B.vertices.size()));
-    }
-  }
-  if (candidates.empty()) {
-    // Round-off left the two polygons apart: one point between their closest vertices.
-    double best = std::numeric_limits<double>::infinity();
-    const CapVertex* ca = &polygon_a[0];
-    const CapVertex* cb = &polygon_b[0];
-    for (const CapVertex& x : polygon_a) {
-      for (const CapVertex& y : polygon_b) {
-        const double d = (x.p - y.p).squaredNorm();
-        if (d < best) {
-          best = d;
-          ca = &x;
-          cb = &y;
-        }
+  auto intersect = [&](const std::vector<CapVertex>& polygon_a, const std::vector<CapVertex>& polygon_b) {
+    for (const CapVertex& c : polygon_a) {
+      if (inside(polygon_b, c.p, feature_tolerance)) {
+        add(c.p, n.dot(A.vertices[static_cast<std::size_t>(c.vertex)]), height_b(c.p), vertex_code(c.vertex),
+            face_code(face_b));
       }
     }
-    add(0.5 * (ca->p + cb->p), n.dot(A.vertices[static_cast<std::size_t>(ca->vertex)]),
-        n.dot(vb[static_cast<std::size_t>(cb->vertex)]), vertex_code(ca->vertex), vertex_code(cb->vertex));
+    for (const CapVertex& c : polygon_b) {
+      if (inside(polygon_a, c.p, feature_tolerance)) {
+        add(c.p, height_a(c.p), n.dot(vb[static_cast<std::size_t>(c.vertex)]), face_code(face_a),
+            vertex_code(c.vertex));
+      }
+    }
+    const std::size_t edges_a = polygon_a.size() < 2 ? 0 : (polygon_a.size() == 2 ? 1 : polygon_a.size());
+    const std::size_t edges_b = polygon_b.size() < 2 ? 0 : (polygon_b.size() == 2 ? 1 : polygon_b.size());
+    for (std::size_t i = 0; i < edges_a; ++i) {
+      const CapVertex& a0 = polygon_a[i];
+      const CapVertex& a1 = polygon_a[(i + 1) % polygon_a.size()];
+      for (std::size_t j = 0; j < edges_b; ++j) {
+        const CapVertex& b0 = polygon_b[j];
+        const CapVertex& b1 = polygon_b[(j + 1) % polygon_b.size()];
+        Vec2 at;
+        double ta = 0.0;
+        if (!segments_cross(a0.p, a1.p, b0.p, b1.p, at, ta)) continue;
+        // The cap hull's edges may be chords across a curved cap: take the surfaces' heights
+        // there (exact on a true edge, and above a chord).
+        (void)ta;
+        const double za = height_a(at);
+        const double zb = height_b(at);
+        add(at, za, zb, edge_code(a0.vertex, a1.vertex, A.vertices.size()),
+            edge_code(b0.vertex, b1.vertex, B.vertices.size()));
+      }
+    }
+  };
+  intersect(support_polygons.first, support_polygons.second);
+  if (candidates.empty()) {
+    // The supports' projections do not meet (round-off, or a merged face bending the Gauss map):
+    // one point between their closest features, carrying the plane's gap, so the overlap
+    // measured by the common plane is always represented.
+    const auto& polygon_a = support_polygons.first;
+    const auto& polygon_b = support_polygons.second;
+    double best = std::numeric_limits<double>::infinity();
+    Vec2 point_a = polygon_a[0].p, point_b = polygon_b[0].p;
+    std::uint32_t feature_a = vertex_code(polygon_a[0].vertex), feature_b = vertex_code(polygon_b[0].vertex);
+    // Closest point to q on the boundary of `polygon` (a point, segment or polygon), with its feature.
+    auto closest_on = [](const std::vector<CapVertex>& polygon, const Vec2& q, std::size_t vertex_count,
+                         std::uint32_t& feature) {
+      Vec2 best_point = polygon[0].p;
+      double best_distance = (q - best_point).squaredNorm();
+      feature = vertex_code(polygon[0].vertex);
+      const std::size_t edges = polygon.size() < 2 ? 0 : (polygon.size() == 2 ? 1 : polygon.size());
+      for (std::size_t i = 0; i < edges; ++i) {
+        const CapVertex& p0 = polygon[i];
+        const CapVertex& p1 = polygon[(i + 1) % polygon.size()];
+        const Vec2 e = p1.p - p0.p;
+        const double t = std::clamp((q - p0.p).dot(e) / e.squaredNorm(), 0.0, 1.0);
+        const Vec2 c = p0.p + t * e;
+        const double d = (q - c).squaredNorm();
+        if (d < best_distance) {
+          best_distance = d;
+          best_point = c;
+          feature = t == 0.0 ? vertex_code(p0.vertex) : t == 1.0 ? vertex_code(p1.vertex)
+                                                              : edge_code(p0.vertex, p1.vertex, vertex_count);
+        }
+      }
+      return best_point;
+    };
+    for (const CapVertex& x : polygon_a) {
+      std::uint32_t f = 0;
+      const Vec2 c = closest_on(polygon_b, x.p, B.vertices.size(), f);
+      if ((c - x.p).squaredNorm() < best) {
+        best = (c - x.p).squaredNorm();
+        point_a = x.p;
+        point_b = c;
+        feature_a = vertex_code(x.vertex);
+        feature_b = f;
+      }
+    }
+    for (const CapVertex& y : polygon_b) {
+      std::uint32_t f = 0;
+      const Vec2 c = closest_on(polygon_a, y.p, A.vertices.size(), f);
+      if ((c - y.p).squaredNorm() < best) {
+        best = (c - y.p).squaredNorm();
+        point_a = c;
+        point_b = y.p;
+        feature_a = f;
+        feature_b = vertex_code(y.vertex);
+      }
+    }
+    add(0.5 * (point_a + point_b), top_a, bottom_b, feature_a, feature_b);
   }
+  intersect(alert_polygons.first, alert_polygons.second);
 
   std::vector<Candidate> active;
   for (const Candidate& c : candidates) {
@@ -353,8 +408,8 @@ void collide_polyhedron_polyhedron(const Model& model, const State& state, std::
   // Bounding spheres first: most broad-phase pairs stop here.
   const double centre_distance = (state.position[b] - state.position[a]).norm();
   if (centre_distance - model.bounding_radius[a] - model.bounding_radius[b] >= alert_distance) return;
-  const PlacedPolyhedron pa = placed(model, state, a);
-  const PlacedPolyhedron pb = placed(model, state, b);
+  const PolyhedronInWorld pa = placed(model, state, a);
+  const PolyhedronInWorld pb = placed(model, state, b);
   const CommonPlane plane = find_common_plane(pa, pb, previous_common_normal, alert_distance);
   common_normal = plane.normal;
   if (!plane.complete || plane.gap >= alert_distance) return;
@@ -367,8 +422,8 @@ void collide_box_polyhedron(const Model& model, const State& state, std::uint32_
   // A box wall is a convex polyhedron with 8 vertices: the same common-plane method applies.
   const ConvexPolyhedron box =
       make_box_polyhedron(model.boxes[static_cast<std::size_t>(model.shape_index[wall])].half_extents);
-  const PlacedPolyhedron pa{&box, state.position[wall], state.orientation[wall].toRotationMatrix()};
-  const PlacedPolyhedron pb = placed(model, state, grain);
+  const PolyhedronInWorld pa{&box, state.position[wall], state.orientation[wall].toRotationMatrix()};
+  const PolyhedronInWorld pb = placed(model, state, grain);
   // The warm-start memory is keyed by the ordered pair; the dispatcher passes (wall, grain) and
   // stores the normal as returned here (from the wall to the grain).
   const CommonPlane plane = find_common_plane(pa, pb, previous_common_normal, alert_distance);
@@ -382,7 +437,7 @@ void collide_plane_polyhedron(const Model& model, const State& state, std::uint3
   const Plane& plane = model.planes[static_cast<std::size_t>(model.shape_index[wall])];
   const Vec3 normal = state.orientation[wall] * plane.normal;
   const double offset = normal.dot(state.position[wall]);
-  const PlacedPolyhedron grain_pose = placed(model, state, grain);
+  const PolyhedronInWorld grain_pose = placed(model, state, grain);
   const ConvexPolyhedron& shape = *grain_pose.shape;
   // Quick exit: the whole bounding sphere is beyond the alert distance.
   if (normal.dot(state.position[grain]) - offset - shape.bounding_radius >= alert_distance) return;
@@ -413,7 +468,7 @@ void collide_sphere_polyhedron(const Model& model, const State& state, std::uint
   const double radius = model.sphere_radius(sphere);
   const Vec3 centre_line = state.position[sphere] - state.position[polyhedron];
   if (centre_line.norm() - radius - model.bounding_radius[polyhedron] >= alert_distance) return;
-  const PlacedPolyhedron pose = placed(model, state, polyhedron);
+  const PolyhedronInWorld pose = placed(model, state, polyhedron);
   const ConvexPolyhedron& shape = *pose.shape;
   const Vec3 centre = pose.rotation.transpose() * centre_line;  // sphere centre in the body frame
 

@@ -44,7 +44,7 @@ Vec3 closest_on_triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
   return a + ab * (vb * denominator) + ac * (vc * denominator);
 }
 
-Reference minkowski_reference(const PlacedPolyhedron& a, const PlacedPolyhedron& b) {
+Reference minkowski_reference(const PolyhedronInWorld& a, const PolyhedronInWorld& b) {
   std::vector<Vec3> difference;
   for (const Vec3& vb : b.shape->vertices) {
     const Vec3 yb = b.rotation * vb + b.position;
@@ -120,11 +120,11 @@ void check_random_pairs(int pairs, int min_vertices, int max_vertices, std::uint
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   int overlapping = 0, apart = 0, normals_compared = 0;
   for (int k = 0; k < pairs; ++k) {
-    const PlacedPolyhedron a{&pool[pick(rng)], Vec3(uniform(rng), uniform(rng), uniform(rng)), random_rotation(rng).toRotationMatrix()};
+    const PolyhedronInWorld a{&pool[pick(rng)], Vec3(uniform(rng), uniform(rng), uniform(rng)), random_rotation(rng).toRotationMatrix()};
     const ConvexPolyhedron& shape_b = pool[pick(rng)];
     // Centre distance uniform up to the sum of the bounding radii: about half the pairs overlap.
     const double reach = a.shape->bounding_radius + shape_b.bounding_radius;
-    const PlacedPolyhedron b{&shape_b, a.position + uniform(rng) * reach * random_direction(rng),
+    const PolyhedronInWorld b{&shape_b, a.position + uniform(rng) * reach * random_direction(rng),
                              random_rotation(rng).toRotationMatrix()};
     const Reference ref = minkowski_reference(a, b);
     const CommonPlane plane = find_common_plane(a, b, nullptr, std::numeric_limits<double>::infinity());
@@ -165,12 +165,12 @@ TEST(CommonPlane, FullSizeRangePairsMatchTheMinkowskiReference) { check_random_p
 
 TEST(CommonPlane, TwoCubesFaceToFace) {
   const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
-  const PlacedPolyhedron a{&cube, Vec3::Zero(), Mat3::Identity()};
-  const PlacedPolyhedron b{&cube, Vec3(0.2, -0.1, 1.03), Mat3::Identity()};
+  const PolyhedronInWorld a{&cube, Vec3::Zero(), Mat3::Identity()};
+  const PolyhedronInWorld b{&cube, Vec3(0.2, -0.1, 1.03), Mat3::Identity()};
   const CommonPlane plane = find_common_plane(a, b, nullptr, 1.0);
   EXPECT_NEAR(plane.gap, 0.03, 1e-12);
   EXPECT_NEAR((plane.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
-  const PlacedPolyhedron c{&cube, Vec3(0.2, -0.1, 0.98), Mat3::Identity()};
+  const PolyhedronInWorld c{&cube, Vec3(0.2, -0.1, 0.98), Mat3::Identity()};
   const CommonPlane overlap = find_common_plane(a, c, nullptr, 1.0);
   EXPECT_NEAR(overlap.gap, -0.02, 1e-14);
   EXPECT_NEAR((overlap.normal - Vec3::UnitZ()).norm(), 0.0, 1e-14);
@@ -182,9 +182,9 @@ TEST(CommonPlane, CrossedEdgesGiveTheEdgeCrossProduct) {
   const double half_diagonal = std::sqrt(0.5);
   const Mat3 ra = Eigen::AngleAxisd(M_PI / 4, Vec3::UnitX()).toRotationMatrix();
   const Mat3 rb = Eigen::AngleAxisd(M_PI / 4, Vec3::UnitY()).toRotationMatrix();
-  const PlacedPolyhedron a{&cube, Vec3::Zero(), ra};
+  const PolyhedronInWorld a{&cube, Vec3::Zero(), ra};
   // Off the centre line, so the line of centres is not already the answer.
-  const PlacedPolyhedron b{&cube, Vec3(0.1, -0.05, 2 * half_diagonal - 0.01), rb};
+  const PolyhedronInWorld b{&cube, Vec3(0.1, -0.05, 2 * half_diagonal - 0.01), rb};
   const CommonPlane plane = find_common_plane(a, b, nullptr, 1.0);
   EXPECT_EQ(plane.source, CommonPlaneSource::edge_edge);
   EXPECT_NEAR(plane.gap, -0.01, 1e-12);
@@ -193,13 +193,13 @@ TEST(CommonPlane, CrossedEdgesGiveTheEdgeCrossProduct) {
 
 TEST(CommonPlane, WarmStartIsKeptWhenAsGoodAndStopsEarlyWhenFar) {
   const ConvexPolyhedron cube = make_box_polyhedron(Vec3(0.5, 0.5, 0.5));
-  const PlacedPolyhedron a{&cube, Vec3::Zero(), Mat3::Identity()};
-  const PlacedPolyhedron b{&cube, Vec3(0, 0, 0.999), Mat3::Identity()};
+  const PolyhedronInWorld a{&cube, Vec3::Zero(), Mat3::Identity()};
+  const PolyhedronInWorld b{&cube, Vec3(0, 0, 0.999), Mat3::Identity()};
   const Vec3 up = Vec3::UnitZ();
   const CommonPlane plane = find_common_plane(a, b, &up, 0.01);
   EXPECT_EQ(plane.source, CommonPlaneSource::warm_start);
   EXPECT_NEAR(plane.gap, -0.001, 1e-14);
-  const PlacedPolyhedron far{&cube, Vec3(0, 0, 3), Mat3::Identity()};
+  const PolyhedronInWorld far{&cube, Vec3(0, 0, 3), Mat3::Identity()};
   const CommonPlane early = find_common_plane(a, far, &up, 0.01);
   EXPECT_FALSE(early.complete);
   EXPECT_NEAR(early.gap, 2.0, 1e-14);
