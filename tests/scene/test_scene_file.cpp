@@ -264,6 +264,43 @@ TEST(Examples, EveryExampleFileParses) {
   EXPECT_GE(count, 2u);
 }
 
+// examples/accretion/: the study's sets (seed 001), each file what its name says: spheres-N,
+// polyhedra-N (N grains on the cubic grid of mesh 10 m), spheres-3375-muM (friction M), all with
+// density 5164, diameters in [7.5, 10] m, mu = 0 unless named, dt = "auto", until = "rest".
+TEST(Examples, AccretionStudyFilesAreTheirCases) {
+  std::size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion")) {
+    if (entry.path().extension() != ".toml") continue;
+    ++files;
+    const std::string stem = entry.path().stem().string();
+    SCOPED_TRACE(stem);
+    const Scene scene = load_scene_file(entry.path());
+    const bool polyhedra = stem.rfind("polyhedra-", 0) == 0;
+    const std::size_t dash = stem.find('-');
+    const std::size_t count = std::stoul(stem.substr(dash + 1));
+    const std::size_t mu_at = stem.find("-mu");
+    const double mu = mu_at == std::string::npos ? 0.0 : std::stod(stem.substr(mu_at + 3));
+    EXPECT_EQ(scene.name, stem);
+    ASSERT_EQ(scene.model.body_count(), count);
+    EXPECT_EQ(polyhedra ? scene.model.polyhedra.size() : scene.model.spheres.size(), count);
+    EXPECT_EQ(scene.model.materials.at(0).density, 5164.0);
+    EXPECT_EQ(scene.model.contact_laws.get(0, 0).friction_coefficient, mu);
+    EXPECT_EQ(scene.model.contact_laws.get(0, 0).normal_restitution, 0.0);
+    EXPECT_TRUE(scene.run.automatic_time_step);
+    EXPECT_TRUE(scene.run.until_rest);
+    EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::self);
+    const double k = std::round(std::cbrt(static_cast<double>(count)));
+    for (std::size_t b = 0; b < count; ++b) {
+      EXPECT_LE(scene.state.position[b].cwiseAbs().maxCoeff(), 5.0 * k);
+      if (!polyhedra) {
+        EXPECT_GE(scene.model.sphere_radius(b), 3.75);
+        EXPECT_LE(scene.model.sphere_radius(b), 5.0);
+      }
+    }
+  }
+  EXPECT_EQ(files, 18u);  // 7 sphere sets, 5 polyhedra sets, 6 friction values
+}
+
 TEST(DefaultScene, SameSeedSameGrainsOtherSeedOtherGrains) {
   std::string text = default_scene_toml();
   const Scene a = parse_scene(text, "a.toml");
