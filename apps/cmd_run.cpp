@@ -140,7 +140,12 @@ int run_command(const RunArguments& args) {
   control.progress = progress;
   if (progress) {
     *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
-              << scene.run.step.integrator.time_step << " s, until t = " << scene.run.end_time << " s\n";
+              << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
+              << (scene.run.until_rest
+                      ? fmt::format(", until at rest (mean kinetic energy < {:.3g} J per grain for {:.4g} s) or t = ",
+                                    scene.run.rest.mean_kinetic_energy, scene.run.rest.duration)
+                      : std::string(", until t = "))
+              << scene.run.end_time << " s\n";
     if (resuming) {
       *progress << "rubble run: resuming from " << loaded.file.string() << " (step " << loaded.checkpoint.state.step
                 << ", t = " << loaded.checkpoint.state.time << " s)\n";
