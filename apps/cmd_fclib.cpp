@@ -108,7 +108,7 @@ void register_fclib_command(CLI::App& app) {
                   "After the sweeps stall: none, or newton (semismooth Newton on the Alart-Curnier function)")
       ->capture_default_str();
   cmd->add_option("--polish-after", args->options.polish_after,
-                  "Sweeps before the polish may start (it starts earlier if the sweeps stall)")
+                  "Sweeps before the first polish attempt (later attempts after twice as many sweeps)")
       ->capture_default_str();
   cmd->callback([args] {
     const int code = fclib_command(*args);
