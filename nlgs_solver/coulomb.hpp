@@ -8,10 +8,15 @@
 
 namespace rubble {
 
+/// Length of the tangential part (t, s) of a local vector. Plain sqrt: std::hypot's overflow
+/// guard costs more than the rest of a local solve, and impulses and velocities never come near
+/// 1e154.
+inline double tangential_norm(const Vec3& x) { return std::sqrt(x.y() * x.y() + x.z() * x.z()); }
+
 /// Euclidean projection of x onto the cone K_mu = {||x_T|| <= mu x_n}.
 inline Vec3 project_onto_coulomb_cone(const Vec3& x, double mu) {
   const double normal = x.x();
-  const double tangential = std::hypot(x.y(), x.z());
+  const double tangential = tangential_norm(x);
   if (tangential <= mu * normal) return x;                          // inside K
   if (mu * tangential <= -normal) return Vec3::Zero();              // inside the polar cone -K*
   const double projected_normal = (normal + mu * tangential) / (1.0 + mu * mu);
@@ -25,7 +30,7 @@ inline Vec3 project_onto_coulomb_cone(const Vec3& x, double mu) {
 inline Vec3 natural_map(const Vec3& impulse, const Vec3& velocity, double mu, double rho = 1.0) {
   const Vec3 r = rho * impulse;
   Vec3 u_hat = velocity;
-  u_hat.x() += mu * std::hypot(velocity.y(), velocity.z());
+  u_hat.x() += mu * tangential_norm(velocity);
   return r - project_onto_coulomb_cone(r - u_hat, mu);
 }
 

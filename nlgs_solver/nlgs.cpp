@@ -144,12 +144,18 @@ double coloured_sweep(BodyCoupledProblem& problem, const ContactColouring& colou
     const std::size_t end = colouring.colour_start[c + 1];
     const auto chunks = static_cast<std::ptrdiff_t>((end - begin + chunk - 1) / chunk);
     chunk_residual.assign(static_cast<std::size_t>(chunks), 0.0);
-#pragma omp parallel for schedule(static) if (static_cast<std::ptrdiff_t>(end - begin) >= min_parallel_items)
-    for (std::ptrdiff_t i = 0; i < chunks; ++i) {
+    auto sweep_chunk = [&](std::ptrdiff_t i) {
       const std::size_t first = begin + static_cast<std::size_t>(i) * chunk;
       const std::size_t last = std::min(end, first + chunk);
       const std::span<const std::size_t> part(colouring.order.data() + first, last - first);
       chunk_residual[static_cast<std::size_t>(i)] = nlgs_sweep(problem, part, relaxation).residual_squared;
+    };
+    if (static_cast<std::ptrdiff_t>(end - begin) >= min_parallel_items) {
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t i = 0; i < chunks; ++i) sweep_chunk(i);
+    } else {
+      // Small colours: no OpenMP team at all (even a one-thread team costs a futex round trip).
+      for (std::ptrdiff_t i = 0; i < chunks; ++i) sweep_chunk(i);
     }
     for (const double r : chunk_residual) residual_squared += r;
   }
@@ -226,7 +232,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
     Contact& c = contacts[k];
     residual_squared += natural_map(c.impulse, problem.local_velocity(k), c.friction_coefficient, c.delassus(0, 0))
                             .squaredNorm();
-    const double tangential = std::hypot(c.impulse.y(), c.impulse.z());
+    const double tangential = tangential_norm(c.impulse);
     if (c.impulse.x() > 0.0) ++stats.active_contacts;
     c.status = c.impulse.x() <= 0.0 ? ContactStatus::open
                : tangential >= c.friction_coefficient * c.impulse.x() * (1.0 - 1e-9) ? ContactStatus::sliding
