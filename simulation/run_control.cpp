@@ -20,6 +20,7 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_grain(b) || model.is_fixed(b)) continue;
     ++scales.grains;
+    scales.has_polyhedra = scales.has_polyhedra || model.shape_kind[b] == ShapeKind::polyhedron;
     scales.total_mass += model.mass[b];
     weighted += model.mass[b] * state.position[b];
     volume += model.volume[b];
@@ -106,7 +107,8 @@ RestCriterion automatic_rest_criterion(const SceneScales& scales, double thresho
       throw std::invalid_argument(
           "cannot choose rest_kinetic_energy automatically: the scene has no gravity and no motion (give it in J)");
     }
-    criterion.mean_kinetic_energy = auto_rest_energy_fraction * reference;
+    criterion.mean_kinetic_energy =
+        (scales.has_polyhedra ? auto_rest_energy_fraction_polyhedra : auto_rest_energy_fraction) * reference;
   }
   if (duration > 0.0) {
     criterion.duration = duration;

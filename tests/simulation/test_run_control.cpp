@@ -77,6 +77,9 @@ TEST(AutomaticRestCriterion, FractionsOfTheReferenceEnergyAndTime) {
   const RestCriterion automatic = automatic_rest_criterion(s);
   EXPECT_DOUBLE_EQ(automatic.mean_kinetic_energy, auto_rest_energy_fraction * 0.5 * 2.0 * 9.0);
   EXPECT_DOUBLE_EQ(automatic.duration, auto_rest_duration_fraction * 100.0);
+  s.has_polyhedra = true;
+  EXPECT_DOUBLE_EQ(automatic_rest_criterion(s).mean_kinetic_energy,
+                   auto_rest_energy_fraction_polyhedra * 0.5 * 2.0 * 9.0);
   const RestCriterion given = automatic_rest_criterion(s, 0.5, 7.0);
   EXPECT_EQ(given.mean_kinetic_energy, 0.5);
   EXPECT_EQ(given.duration, 7.0);
