@@ -186,7 +186,10 @@ std::vector<PackedGrain> box_deposit(const BoxDepositOptions& options, std::uint
   Vec3 origin;
   for (int axis = 0; axis < 3; ++axis) {
     const double extent = options.region_max[axis] - options.region_min[axis];
-    n[axis] = static_cast<std::uint64_t>(std::floor(extent / cell * (1.0 + 1e-9)));
+    // Capped before the cast: an absurdly long axis (extent / cell > 2^64, found by fuzzing) would
+    // overflow it, and no axis ever needs more cells than the largest grain count.
+    n[axis] = static_cast<std::uint64_t>(
+        std::min(std::floor(extent / cell * (1.0 + 1e-9)), static_cast<double>(max_packed_grains)));
     // Centre the grid in x and y; along z start at the bottom so the deposit is a compact column.
     origin[axis] = axis == 2 ? options.region_min[axis]
                              : options.region_min[axis] + 0.5 * (extent - static_cast<double>(n[axis]) * cell);

@@ -47,6 +47,21 @@ TEST(BoxDeposit, ExactCountInsideRegionNoOverlap) {
   EXPECT_GT(smallest_gap(grains), 0.0);  // default loose cell: 2.2 radius_max
 }
 
+// Found by the scene-parser fuzzer: an axis 4e70 m long overflowed the cast of its cell count
+// (undefined behaviour). The deposit must still be made, inside the region.
+TEST(BoxDeposit, AbsurdlyLongAxisDoesNotOverflow) {
+  BoxDepositOptions options = deposit_options();
+  options.region_min = Vec3(-0.5, -4.4e70, 0.0);
+  options.region_max = Vec3(0.5, 0.5, 1.0);
+  const std::vector<PackedGrain> grains = box_deposit(options, 3);
+  ASSERT_EQ(grains.size(), options.count);
+  for (const PackedGrain& g : grains) {
+    EXPECT_TRUE(g.position.allFinite());
+    EXPECT_GE(g.position.x(), options.region_min.x());
+    EXPECT_LE(g.position.x(), options.region_max.x());
+  }
+}
+
 TEST(BoxDeposit, CapacityIsTheGridSizeAndIsEnforced) {
   BoxDepositOptions options = deposit_options();
   options.cell_size = 0.12;
