@@ -299,6 +299,10 @@ CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
 
   // --- 2. apart? GJK gives the exact distance and closest-points direction ---
   const GjkResult gjk = gjk_distance(A.vertices, vb, n0, size);
+  // Below this distance GJK's closest-points direction is round-off (flush faces a hair apart
+  // give a normal tilted by 1e-5 and a gap off by 1e-5 of the size): touching bodies go through
+  // the separating-axis search as well, which finds the face normal exactly.
+  const double touching = 1e-6 * size;
   if (gjk.separated) {
     const Vec3 n = gjk.closest.normalized();
     const double value = separation(n);
@@ -307,10 +311,12 @@ CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
       best_normal = n;
       best_source = CommonPlaneSource::closest_points;
     }
-  } else {
+  }
+  if (!gjk.separated || gjk.closest.norm() < touching) {
     // --- 3. overlapping (or touching): separating-axis search for the least penetration ---
-    // Every candidate value is <= 0 here, so a candidate s that beats `best` has |s| < -best.
-    best = std::min(best, 0.0);
+    // Every candidate value is <= touching here, so a candidate s that beats `best` has
+    // |s| < max(-best, touching).
+    if (!gjk.separated) best = std::min(best, 0.0);
 
     // Faces of A: f(n_f) = min_B n_f.y - d_f <= n_f.c_B - d_f since B's centroid is inside B.
     for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
@@ -338,7 +344,7 @@ CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     // Edge pairs. A pair whose value s beats `best` has crossing points x_A and x_B = x_A + s n
     // with |s| < -best, so edge A passes within -best of B and edge B within -best of A: edges
     // that miss the other body's bounding box inflated by -best are skipped.
-    const double reach = -best + 1e-12 * size;
+    const double reach = std::max(-best, touching) + 1e-12 * size;
     const Vec3 lower_b = B.box_min - Vec3::Constant(reach), upper_b = B.box_max + Vec3::Constant(reach);
     const Vec3 lower_a = A.box_min - Vec3::Constant(reach), upper_a = A.box_max + Vec3::Constant(reach);
     std::vector<int> edges_a, edges_b;

@@ -1,5 +1,6 @@
 #include "contact_detection/narrow_phase_polyhedra.hpp"
 
+#include <Eigen/QR>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -19,6 +20,10 @@ constexpr std::uint32_t kind_vertex = 0u << 30;
 constexpr std::uint32_t kind_edge = 1u << 30;
 constexpr std::uint32_t kind_face = 2u << 30;
 constexpr std::uint32_t index_mask = (1u << 30) - 1u;
+
+/// Contact points of one pair at most: 4 for a flat contact, more only where a curved cap's
+/// gap is not affine over the plane (see add_off_plane_points).
+constexpr std::size_t max_points_per_pair = 8;
 
 std::uint32_t vertex_code(int v) { return kind_vertex | (static_cast<std::uint32_t>(v) & index_mask); }
 std::uint32_t face_code(int f) { return kind_face | (static_cast<std::uint32_t>(f) & index_mask); }
@@ -102,6 +107,41 @@ bool inside(const std::vector<CapVertex>& polygon, const Vec2& q, double toleran
   return true;
 }
 
+/// Closest point to q on the boundary of `polygon` (a point, segment or polygon), with its feature
+/// code (vertex or edge of a body with `vertex_count` vertices).
+Vec2 closest_on_boundary(const std::vector<CapVertex>& polygon, const Vec2& q, std::size_t vertex_count,
+                         std::uint32_t& feature) {
+  Vec2 best_point = polygon[0].p;
+  double best_distance = (q - best_point).squaredNorm();
+  feature = vertex_code(polygon[0].vertex);
+  const std::size_t edges = polygon.size() < 2 ? 0 : (polygon.size() == 2 ? 1 : polygon.size());
+  for (std::size_t i = 0; i < edges; ++i) {
+    const CapVertex& p0 = polygon[i];
+    const CapVertex& p1 = polygon[(i + 1) % polygon.size()];
+    const Vec2 e = p1.p - p0.p;
+    const double t = std::clamp((q - p0.p).dot(e) / e.squaredNorm(), 0.0, 1.0);
+    const Vec2 c = p0.p + t * e;
+    const double d = (q - c).squaredNorm();
+    if (d < best_distance) {
+      best_distance = d;
+      best_point = c;
+      feature = t == 0.0 ? vertex_code(p0.vertex) : t == 1.0 ? vertex_code(p1.vertex)
+                                                          : edge_code(p0.vertex, p1.vertex, vertex_count);
+    }
+  }
+  return best_point;
+}
+
+/// q itself when it lies in `polygon`, else the closest point of the polygon. A vertex accepted
+/// as "inside" within the feature tolerance lies just beyond the other body's footprint, where
+/// that body's surface height would come from a nearly parallel side face (height ~ offset /
+/// tiny slope, i.e. a huge bogus gap); its height is read at the footprint's edge instead.
+Vec2 clamp_into(const std::vector<CapVertex>& polygon, const Vec2& q) {
+  if (polygon.size() >= 3 && inside(polygon, q, 0.0)) return q;
+  std::uint32_t feature = 0;
+  return closest_on_boundary(polygon, q, 0, feature);
+}
+
 /// Proper crossing of segments a0-a1 and b0-b1 (parallel segments never cross: their overlap is
 /// found through the endpoint-inside tests).
 bool segments_cross(const Vec2& a0, const Vec2& a1, const Vec2& b0, const Vec2& b1, Vec2& at, double& t_a) {
@@ -182,6 +222,44 @@ std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double 
   return kept;
 }
 
+/// The points `reduce_to_four` dropped that the kept ones do not stand for. A rigid relative
+/// motion changes the gap affinely over the plane, so constraints at the kept points hold every
+/// point whose gap lies on the affine fit of the kept points' gaps (a flat face-face contact: all
+/// of them). A curved cap's gap is convex, below that fit between kinks, and a point deeper than
+/// the fit by more than `tolerance` could sink by that much within one step: it is kept too,
+/// deepest deficit first, up to `max_points` in all.
+std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate> kept,
+                                            double tolerance, std::size_t max_points) {
+  if (kept.size() == all.size() || kept.size() >= max_points) return kept;
+  // Affine fit gap ~ c0 + c1 x + c2 y by least squares over the kept points (a line or a
+  // constant when they are collinear or alone).
+  const Vec2 origin = kept[0].p;
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Vec3 right = Vec3::Zero();
+  for (const Candidate& c : kept) {
+    const Vec3 row(1.0, c.p.x() - origin.x(), c.p.y() - origin.y());
+    normal_matrix += row * row.transpose();
+    right += row * c.gap;
+  }
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix3d> solver(normal_matrix);
+  const Vec3 fit = solver.solve(right);
+  std::vector<std::pair<double, std::size_t>> deficits;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    bool is_kept = false;
+    for (const Candidate& c : kept) is_kept = is_kept || (c.p - all[i].p).squaredNorm() == 0.0;
+    if (is_kept) continue;
+    const double predicted = fit.dot(Vec3(1.0, all[i].p.x() - origin.x(), all[i].p.y() - origin.y()));
+    const double deficit = predicted - all[i].gap;
+    if (deficit > tolerance) deficits.emplace_back(deficit, i);
+  }
+  std::sort(deficits.begin(), deficits.end(), [](const auto& x, const auto& y) { return x.first > y.first || (x.first == y.first && x.second < y.second); });
+  for (const auto& [deficit, i] : deficits) {
+    if (kept.size() >= max_points) break;
+    kept.push_back(all[i]);
+  }
+  return kept;
+}
+
 /// Appends a contact point.
 void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std::uint32_t feature_b,
                   const Vec3& normal, const Vec3& point, double gap, ContactList& contacts) {
@@ -251,7 +329,7 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
       const Vec3& m = A.face_normals[f];
       const double up = m.dot(n);
-      if (up <= 1e-9) continue;
+      if (up <= 1e-6) continue;
       z = std::min(z, (A.face_offsets[f] - p.x() * m.dot(t) - p.y() * m.dot(s)) / up);
     }
     return z;
@@ -261,7 +339,7 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
   for (std::size_t f = 0; f < B.face_normals.size(); ++f) {
     const Vec3 m = rotation * B.face_normals[f];
     const double down = m.dot(n);
-    if (down >= -1e-9) continue;
+    if (down >= -1e-6) continue;
     faces_down.push_back({m.dot(t), m.dot(s), down, B.face_offsets[f] + m.dot(translation)});
   }
   auto height_b = [&](const Vec2& p) {
@@ -298,13 +376,14 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
   auto intersect = [&](const std::vector<CapVertex>& polygon_a, const std::vector<CapVertex>& polygon_b) {
     for (const CapVertex& c : polygon_a) {
       if (inside(polygon_b, c.p, feature_tolerance)) {
-        add(c.p, n.dot(A.vertices[static_cast<std::size_t>(c.vertex)]), height_b(c.p), vertex_code(c.vertex),
+        add(c.p, n.dot(A.vertices[static_cast<std::size_t>(c.vertex)]), height_b(clamp_into(polygon_b, c.p)),
+            vertex_code(c.vertex),
             face_code(face_b));
       }
     }
     for (const CapVertex& c : polygon_b) {
       if (inside(polygon_a, c.p, feature_tolerance)) {
-        add(c.p, height_a(c.p), n.dot(vb[static_cast<std::size_t>(c.vertex)]), face_code(face_a),
+        add(c.p, height_a(clamp_into(polygon_a, c.p)), n.dot(vb[static_cast<std::size_t>(c.vertex)]), face_code(face_a),
             vertex_code(c.vertex));
       }
     }
@@ -339,32 +418,9 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     double best = std::numeric_limits<double>::infinity();
     Vec2 point_a = polygon_a[0].p, point_b = polygon_b[0].p;
     std::uint32_t feature_a = vertex_code(polygon_a[0].vertex), feature_b = vertex_code(polygon_b[0].vertex);
-    // Closest point to q on the boundary of `polygon` (a point, segment or polygon), with its feature.
-    auto closest_on = [](const std::vector<CapVertex>& polygon, const Vec2& q, std::size_t vertex_count,
-                         std::uint32_t& feature) {
-      Vec2 best_point = polygon[0].p;
-      double best_distance = (q - best_point).squaredNorm();
-      feature = vertex_code(polygon[0].vertex);
-      const std::size_t edges = polygon.size() < 2 ? 0 : (polygon.size() == 2 ? 1 : polygon.size());
-      for (std::size_t i = 0; i < edges; ++i) {
-        const CapVertex& p0 = polygon[i];
-        const CapVertex& p1 = polygon[(i + 1) % polygon.size()];
-        const Vec2 e = p1.p - p0.p;
-        const double t = std::clamp((q - p0.p).dot(e) / e.squaredNorm(), 0.0, 1.0);
-        const Vec2 c = p0.p + t * e;
-        const double d = (q - c).squaredNorm();
-        if (d < best_distance) {
-          best_distance = d;
-          best_point = c;
-          feature = t == 0.0 ? vertex_code(p0.vertex) : t == 1.0 ? vertex_code(p1.vertex)
-                                                              : edge_code(p0.vertex, p1.vertex, vertex_count);
-        }
-      }
-      return best_point;
-    };
     for (const CapVertex& x : polygon_a) {
       std::uint32_t f = 0;
-      const Vec2 c = closest_on(polygon_b, x.p, B.vertices.size(), f);
+      const Vec2 c = closest_on_boundary(polygon_b, x.p, B.vertices.size(), f);
       if ((c - x.p).squaredNorm() < best) {
         best = (c - x.p).squaredNorm();
         point_a = x.p;
@@ -375,7 +431,7 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     }
     for (const CapVertex& y : polygon_b) {
       std::uint32_t f = 0;
-      const Vec2 c = closest_on(polygon_a, y.p, A.vertices.size(), f);
+      const Vec2 c = closest_on_boundary(polygon_a, y.p, A.vertices.size(), f);
       if ((c - y.p).squaredNorm() < best) {
         best = (c - y.p).squaredNorm();
         point_a = c;
@@ -387,12 +443,45 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     add(0.5 * (point_a + point_b), top_a, bottom_b, feature_a, feature_b);
   }
   intersect(alert_polygons.first, alert_polygons.second);
+  // Ridges inside the caps: where an edge of one body crosses a curved cap of the other, the gap
+  // along it has its kinks (and the overlap its corners) at the cap's interior edges, which the
+  // hulls above do not see; missing them lets a sliding edge sink into the next facet in one step.
+  {
+    const double depth = std::max(alert_distance - std::max(gap, 0.0), 0.0) + linear_tolerance;
+    struct Segment {
+      CapVertex from, to;
+    };
+    std::vector<Segment> ridges_a, ridges_b;
+    for (const auto& [i, j] : A.edges) {
+      const Vec3& x = A.vertices[static_cast<std::size_t>(i)];
+      const Vec3& y = A.vertices[static_cast<std::size_t>(j)];
+      if (n.dot(x) < top_a - depth || n.dot(y) < top_a - depth) continue;
+      ridges_a.push_back({{Vec2(t.dot(x), s.dot(x)), i}, {Vec2(t.dot(y), s.dot(y)), j}});
+    }
+    for (const auto& [i, j] : B.edges) {
+      const Vec3& x = vb[static_cast<std::size_t>(i)];
+      const Vec3& y = vb[static_cast<std::size_t>(j)];
+      if (n.dot(x) > bottom_b + depth || n.dot(y) > bottom_b + depth) continue;
+      ridges_b.push_back({{Vec2(t.dot(x), s.dot(x)), i}, {Vec2(t.dot(y), s.dot(y)), j}});
+    }
+    for (const Segment& ea : ridges_a) {
+      for (const Segment& eb : ridges_b) {
+        Vec2 at;
+        double ta = 0.0;
+        if (!segments_cross(ea.from.p, ea.to.p, eb.from.p, eb.to.p, at, ta)) continue;
+        add(at, height_a(at), height_b(at), edge_code(ea.from.vertex, ea.to.vertex, A.vertices.size()),
+            edge_code(eb.from.vertex, eb.to.vertex, B.vertices.size()));
+      }
+    }
+  }
 
   std::vector<Candidate> active;
   for (const Candidate& c : candidates) {
     if (c.gap < alert_distance) active.push_back(c);
   }
-  const std::vector<Candidate> kept = reduce_to_four(active, 1e-12 * size * size);
+  const std::vector<Candidate> kept =
+      add_off_plane_points(active, reduce_to_four(active, 1e-12 * size * size),
+                           std::max(linear_tolerance, 0.01 * alert_distance), max_points_per_pair);
   for (const Candidate& c : kept) {
     const Vec3 local = c.p.x() * t + c.p.y() * s + 0.5 * (c.height_a + c.height_b) * n;
     push_contact(body_a, body_b, c.feature_a, c.feature_b, normal_world, pa.rotation * local + pa.position, c.gap,
@@ -453,7 +542,11 @@ void collide_plane_polyhedron(const Model& model, const State& state, std::uint3
                           vertex_code(static_cast<int>(i))});
   }
   const double size = shape.bounding_radius;
-  for (const Candidate& c : reduce_to_four(candidates, 1e-12 * size * size)) {
+  const double linear_tolerance = 1e-7 * size;
+  const std::vector<Candidate> kept = add_off_plane_points(candidates, reduce_to_four(candidates, 1e-12 * size * size),
+                                                           std::max(linear_tolerance, 0.01 * alert_distance),
+                                                           max_points_per_pair);
+  for (const Candidate& c : kept) {
     const int vertex = static_cast<int>(c.feature_b & index_mask);
     const Vec3 x = grain_pose.rotation * shape.vertices[static_cast<std::size_t>(vertex)] + grain_pose.position;
     push_contact(wall, grain, 0u, c.feature_b, normal, x - 0.5 * c.gap * normal, c.gap, contacts);

@@ -246,6 +246,11 @@ PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& opt
 
 }  // namespace
 
+int polish_solution(const LocalProblem& problem, const LocalProblemOptions& options, std::vector<double>& r,
+                    std::vector<double>& u, double& error) {
+  return newton_polish(problem, options, r, u, error).iterations;
+}
+
 std::vector<double> alart_curnier_function(const LocalProblem& problem, const std::vector<double>& r) {
   std::vector<double> F;
   alart_curnier(problem, normal_scalings(problem), r, velocities(problem, r), F, nullptr);

@@ -66,6 +66,14 @@ struct LocalProblemSolution {
   bool converged = false;             ///< error <= tolerance
 };
 
+/// Newton polish of an iterate: Levenberg-Marquardt steps on the Alart-Curnier function from r
+/// (u = W r + q on entry), at most `options.polish_iterations`, stopping once the FCLib error is
+/// below `options.tolerance`. r, u and `error` (the FCLib error of r on entry) are replaced when a
+/// better iterate is found. Returns the number of Newton steps taken. Used after the sweeps of
+/// file-backed problems and of the simulation's contacts when they crawl.
+int polish_solution(const LocalProblem& problem, const LocalProblemOptions& options, std::vector<double>& r,
+                    std::vector<double>& u, double& error);
+
 /// The FCLib error measure of (r, u) for the problem (shared/fclib/README.md).
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 

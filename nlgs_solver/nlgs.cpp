@@ -8,6 +8,7 @@
 
 #include "core/parallel.hpp"
 #include "nlgs_solver/coulomb.hpp"
+#include "nlgs_solver/local_problem.hpp"
 #include "nlgs_solver/sweep.hpp"
 
 namespace rubble {
@@ -162,6 +163,121 @@ double coloured_sweep(BodyCoupledProblem& problem, const ContactColouring& colou
   return residual_squared;
 }
 
+
+/// The contacts' problem as explicit data for the Newton polish, in scaled impulses
+/// r~_k = W_kk,nn r_k (velocity units), so that the polish's error measure (natural map with
+/// rho = 1 on r~, u) is the sweeps' criterion (natural map with rho = W_nn on r, u):
+/// u = W~ r~ + q with W~_kl = W_kl / d_l, and W_kl = R_k^T (sum over shared moving bodies of
+/// s_k s_l K(arm_k, arm_l)) R_l, K(x, y) = m^-1 I - [x] I^-1 [y], s = +1 on the b side, -1 on a.
+struct ScaledProblem {
+  LocalProblem problem;
+  std::vector<double> normal_compliance;  ///< d_k = W_kk,nn
+};
+
+ScaledProblem assemble_scaled_problem(const Model& model, const BodyCoupledProblem& coupled) {
+  const ContactList& contacts = coupled.contacts;
+  const std::size_t n = contacts.size();
+  ScaledProblem out;
+  out.normal_compliance.resize(n);
+  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = contacts[k].delassus(0, 0);
+  // Contacts of each moving body.
+  std::vector<std::vector<std::size_t>> of_body(model.body_count());
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!model.is_fixed(contacts[k].id.body_a)) of_body[contacts[k].id.body_a].push_back(k);
+    if (!model.is_fixed(contacts[k].id.body_b)) of_body[contacts[k].id.body_b].push_back(k);
+  }
+  auto side = [&](const Contact& c, std::size_t body, Vec3& arm) {
+    if (c.id.body_b == body) {
+      arm = c.arm_b;
+      return 1.0;
+    }
+    arm = c.arm_a;
+    return -1.0;
+  };
+  SparseMatrix& W = out.problem.W;
+  W.rows = W.columns = static_cast<int>(3 * n);
+  W.row_start.assign(1, 0);
+  std::vector<std::pair<std::size_t, Mat3>> row;  // (l, body-frame sum) for contact k
+  for (std::size_t k = 0; k < n; ++k) {
+    const Contact& ck = contacts[k];
+    row.clear();
+    for (const std::size_t body : {ck.id.body_a, ck.id.body_b}) {
+      if (model.is_fixed(body)) continue;
+      Vec3 arm_k, arm_l;
+      const double sk = side(ck, body, arm_k);
+      const Mat3& inverse_inertia = coupled.inverse_inertia_world[body];
+      for (const std::size_t l : of_body[body]) {
+        const double sl = side(contacts[l], body, arm_l);
+        const Mat3 compliance = model.inverse_mass[body] * Mat3::Identity() - skew(arm_k) * inverse_inertia * skew(arm_l);
+        row.emplace_back(l, sk * sl * compliance);
+      }
+    }
+    std::sort(row.begin(), row.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::vector<std::pair<std::size_t, Mat3>> merged;
+    for (const auto& [l, m] : row) {
+      if (!merged.empty() && merged.back().first == l) merged.back().second += m;
+      else merged.emplace_back(l, m);
+    }
+    for (auto& [l, m] : merged) m = ck.frame.transpose() * m * contacts[l].frame / out.normal_compliance[l];
+    for (int i = 0; i < 3; ++i) {
+      for (const auto& [l, m] : merged) {
+        for (int j = 0; j < 3; ++j) {
+          W.column.push_back(static_cast<int>(3 * l) + j);
+          W.value.push_back(m(i, j));
+        }
+      }
+      W.row_start.push_back(static_cast<int>(W.column.size()));
+    }
+  }
+  out.problem.mu.resize(n);
+  for (std::size_t k = 0; k < n; ++k) out.problem.mu[k] = contacts[k].friction_coefficient;
+  return out;
+}
+
+/// One Newton polish of the current impulses (see SolverOptions::polish_after). On success the
+/// impulses and the bodies' velocities hold the polished solution. Returns the Newton steps taken
+/// and sets `converged` when the sweeps' criterion is met.
+int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const SolverOptions& options, bool& converged) {
+  ContactList& contacts = coupled.contacts;
+  const std::size_t n = contacts.size();
+  ScaledProblem scaled = assemble_scaled_problem(model, coupled);
+  LocalProblem& problem = scaled.problem;
+  std::vector<double> r(3 * n), u(3 * n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3 velocity = coupled.local_velocity(k);
+    for (int i = 0; i < 3; ++i) {
+      r[3 * k + static_cast<std::size_t>(i)] = scaled.normal_compliance[k] * contacts[k].impulse[i];
+      u[3 * k + static_cast<std::size_t>(i)] = velocity[i];
+    }
+  }
+  // q = u - W~ r~: the local velocities without any impulse.
+  problem.q = u;
+  for (int row = 0; row < problem.W.rows; ++row) {
+    for (int e = problem.W.row_start[static_cast<std::size_t>(row)]; e < problem.W.row_start[static_cast<std::size_t>(row) + 1]; ++e) {
+      problem.q[static_cast<std::size_t>(row)] -=
+          problem.W.value[static_cast<std::size_t>(e)] * r[static_cast<std::size_t>(problem.W.column[static_cast<std::size_t>(e)])];
+    }
+  }
+  LocalProblemOptions polish;
+  polish.tolerance = options.tolerance;
+  polish.polish_iterations = options.polish_iterations;
+  double error = fclib_error(problem, r, u);
+  const double before = error;
+  const int steps = polish_solution(problem, polish, r, u, error);
+  if (error < before) {
+    for (std::size_t k = 0; k < n; ++k) {
+      // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
+      const Vec3 next = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
+                                                  contacts[k].friction_coefficient);
+      const Vec3 delta = next - contacts[k].impulse;
+      contacts[k].impulse = next;
+      coupled.apply_impulse_change(k, delta);
+    }
+  }
+  converged = error <= options.tolerance;
+  return steps;
+}
+
 }  // namespace
 
 void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
@@ -213,12 +329,23 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
 
   const ContactColouring colouring = colour_contacts(model, contacts);
   std::vector<double> chunk_residual;
+  int next_polish = options.polish_after;
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
       const double sweep_residual_squared = coloured_sweep(problem, colouring, options.relaxation, chunk_residual);
       if (std::sqrt(sweep_residual_squared) * scale <= options.tolerance) {
         stats.converged = true;
         break;
+      }
+      if (options.polish_after > 0 && stats.iterations == next_polish && contacts.size() <= options.polish_max_contacts) {
+        ++stats.polish_attempts;
+        bool polished = false;
+        stats.newton_iterations += polish_contacts(model, problem, options, polished);
+        next_polish *= 2;
+        if (polished) {
+          stats.converged = true;
+          break;
+        }
       }
     }
     stats.iterations = std::min(stats.iterations, options.max_iterations);

@@ -24,6 +24,14 @@ struct SolverOptions {
   /// m/s: cap on the separation velocity the correction may ask for (so overlaps are undone
   /// gently instead of ejecting grains).
   double max_correction_velocity = 1.0;
+  /// Sweeps after which, if not converged, the whole contact problem is polished by Newton steps
+  /// (nlgs_solver/README.md, "Newton polish"); later attempts after twice as many sweeps each.
+  /// Gauss-Seidel crawls on hyperstatic stacks (four points per face) and its error then carries
+  /// over from step to step; the polish ends that. 0 disables it.
+  int polish_after = 40;
+  int polish_iterations = 20;        ///< Newton (Levenberg-Marquardt) steps per attempt at most
+  /// Larger problems are not polished (the sparse factorisation grows faster than the sweeps).
+  std::size_t polish_max_contacts = 20000;
 };
 
 /// What one solve did, for the step's report.
@@ -31,6 +39,8 @@ struct SolverStats {
   int iterations = 0;          ///< sweeps done
   double residual = 0.0;       ///< natural-map residual ||F|| / ||q|| at exit (scaled, see README)
   bool converged = false;      ///< residual <= tolerance within max_iterations
+  int polish_attempts = 0;     ///< Newton polishes started (see SolverOptions::polish_after)
+  int newton_iterations = 0;   ///< Newton steps taken by those polishes
   std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
   double prepare_seconds = 0;  ///< wall time of the preparation (Delassus blocks, targets)
   double sweep_seconds = 0;    ///< wall time of the sweeps

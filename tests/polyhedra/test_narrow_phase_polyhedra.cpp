@@ -1,10 +1,13 @@
 // contact_detection/narrow_phase_polyhedra: contact points of polyhedra against polyhedra,
 // spheres, planes and boxes, against hand-computed geometry.
 #include "contact_detection/narrow_phase_polyhedra.hpp"
+#include "contact_detection/common_plane.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <random>
 
 #include "core/polyhedron.hpp"
 
@@ -173,6 +176,64 @@ TEST(PolyhedronContacts, IdsPersistUnderSmallMotion) {
     return out;
   };
   EXPECT_EQ(ids(before), ids(after));
+}
+
+// Two stacked cubes whose faces are flush but shifted sideways by a hair and tilted by 1e-9 rad
+// (what a resting tower looks like after a few steps): the corners of each face lie a hair
+// outside the other face, where the other cube's nearly vertical side faces would give a bogus
+// height (offset / tiny slope). Reference: all four corner points, with the true gaps (below the
+// tilt times the side).
+TEST(PolyhedronContacts, FlushFacesShiftedByAHairKeepFourPointsAndTheirGaps) {
+  for (const double tilt : {1e-9, 1e-8, 1e-7}) {
+    for (const double shift : {1e-9, 1e-7, 1e-5}) {
+      Scene s;
+      const auto a = s.cube(0.05, Vec3::Zero());
+      const auto b = s.cube(0.05, Vec3(shift, -0.5 * shift, 0.05), Quat(Eigen::AngleAxisd(tilt, Vec3(1, 1, 0).normalized())));
+      const ContactList contacts = s.polyhedra(a, b);
+      {
+        auto in_world = [&](std::uint32_t body) {
+          return PolyhedronInWorld{&s.model.polyhedra[static_cast<std::size_t>(s.model.shape_index[body])],
+                                   s.state.position[body], s.state.orientation[body].toRotationMatrix()};
+        };
+        const CommonPlane plane = find_common_plane(in_world(a), in_world(b), nullptr, 10.0);
+        // The plane is the faces' (GJK's closest-points direction is round-off at this distance).
+        EXPECT_LT((plane.normal - Vec3::UnitZ()).norm(), 2 * tilt) << "shift " << shift << " tilt " << tilt;
+        EXPECT_LT(std::abs(plane.gap), 0.05 * tilt) << "shift " << shift << " tilt " << tilt;
+      }
+      ASSERT_EQ(contacts.size(), 4u) << "shift " << shift << " tilt " << tilt;
+      for (const Contact& c : contacts) EXPECT_LT(std::abs(c.gap), 0.05 * tilt + 1e-12) << "shift " << shift << " tilt " << tilt;
+    }
+  }
+}
+
+// Whatever the reduction keeps (4 points for a flat patch, up to 8 where the gap over the plane
+// is not affine), the deepest point stays a contact point. Reference: the common plane's own gap
+// (the separation of the two bodies along the optimal normal), on 500 random cube pairs near
+// contact; at most 8 points per pair.
+TEST(PolyhedronContacts, DeepestPointIsAlwaysAContactPoint) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  auto random_rotation = [&] { return Quat(uniform(rng), uniform(rng), uniform(rng), uniform(rng)).normalized(); };
+  int checked = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    Scene t;
+    const auto a = t.cube(1.0, Vec3::Zero(), random_rotation());
+    const auto b = t.cube(1.0, Vec3(0.2 * uniform(rng), 0.2 * uniform(rng), 1.0 + 0.4 * uniform(rng)), random_rotation());
+    auto in_world = [&](std::uint32_t body) {
+      return PolyhedronInWorld{&t.model.polyhedra[static_cast<std::size_t>(t.model.shape_index[body])],
+                               t.state.position[body], t.state.orientation[body].toRotationMatrix()};
+    };
+    const CommonPlane plane = find_common_plane(in_world(a), in_world(b), nullptr, 10.0);
+    if (!plane.complete || plane.gap >= alert) continue;
+    const ContactList contacts = t.polyhedra(a, b);
+    ASSERT_FALSE(contacts.empty()) << "trial " << trial;
+    double deepest = std::numeric_limits<double>::infinity();
+    for (const Contact& c : contacts) deepest = std::min(deepest, c.gap);
+    EXPECT_NEAR(deepest, plane.gap, 1e-9) << "trial " << trial;
+    EXPECT_LE(contacts.size(), 8u);
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
 }
 
 TEST(PolyhedronContacts, PlaneWallGivesTheFaceCorners) {
