@@ -69,6 +69,13 @@ struct AggregateMetrics {
   double packing_fraction = 0.0;        ///< nu = sum V_i / (pi D_max^3 / 6)
   double inner_packing_fraction = 0.0;  ///< grain volume inside the sphere of diameter D_max/2 about x_cm, over its volume
   std::int64_t inner_grains = 0;        ///< grains whose centre is inside that inner sphere
+  /// Semi-axes s_1 >= s_2 >= s_3 of the inertia-equivalent ellipsoid, m: the uniform solid
+  /// ellipsoid with the grains' total mass M and inertia tensor I about x_cm (grains' own inertia
+  /// included), s_i^2 = 5 (I_j + I_k - I_i) / (2 M) over the principal moments I_i.
+  Vec3 inertia_semi_axes = Vec3::Zero();
+  double inertia_aspect_ratio = 0.0;        ///< s_1 / s_3, elongation of the aggregate (1 for a ball)
+  double inertia_diameter = 0.0;            ///< D_I = 2 (s_1 s_2 s_3)^(1/3), m: the sphere of the ellipsoid's volume
+  double inertia_packing_fraction = 0.0;    ///< nu_I = sum V_i / (4/3 pi s_1 s_2 s_3): bulk packing fraction of the aggregate
 
   // --- contacts ---
   std::int64_t contact_points = 0;          ///< contact points in the list (any impulse)
