@@ -39,6 +39,10 @@ void settings_from_scene(const RunReader& reader, PostOptions& options, std::ost
         options.potential.kind = PotentialSettings::Kind::uniform;
         options.potential.acceleration = gravity.acceleration;
         break;
+      case GravitySettings::Kind::central:
+        // The metrics know no central-mass potential yet: left at 0, as for no gravity.
+        options.potential.kind = PotentialSettings::Kind::none;
+        break;
       case GravitySettings::Kind::self:
         options.potential.kind = PotentialSettings::Kind::self;
         options.potential.gravitational_constant = gravity.self_gravity.G;

@@ -316,6 +316,9 @@ std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint) {
     payload.put(t);
     payload.put(log_energy);
   }
+  payload.put(checkpoint.held_gravity_step);
+  payload.put(static_cast<std::uint64_t>(checkpoint.held_gravity.size()));
+  for (const Vec3& a : checkpoint.held_gravity) payload.put(a);
 
   Writer file;
   for (char c : magic) file.put(c);
@@ -387,6 +390,12 @@ Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::s
   for (auto& [t, log_energy] : checkpoint.rest.history) {
     t = in.get<double>();
     log_energy = in.get<double>();
+  }
+  checkpoint.held_gravity_step = in.get<std::int64_t>();
+  checkpoint.held_gravity.resize(in.length(24, "held gravity"));
+  for (Vec3& a : checkpoint.held_gravity) a = in.vec3();
+  if (!checkpoint.held_gravity.empty() && checkpoint.held_gravity.size() != n) {
+    in.fail(fmt::format("held gravity field of {} bodies, the state has {}", checkpoint.held_gravity.size(), n));
   }
   if (!in.at_end()) in.fail("unexpected bytes after the payload");
   if (checkpoint.state.step < checkpoint.progress.first_step || checkpoint.state.step > checkpoint.progress.end_step) {

@@ -2,7 +2,7 @@
 // Checkpoints: everything a run needs to go on from step K exactly as if it had never stopped
 // (docs/checkpoints.md). A checkpoint holds the scene text (the model is rebuilt from it), the
 // State, the StepWorkspace data carried between steps (last step's contacts with their impulses =
-// the warm start, and the detection memory), and the run loop's own bookkeeping (end step,
+// the warm start, the detection memory, and the held self-gravity field), and the run loop's own bookkeeping (end step,
 // snapshot cadence, rows and snapshots already in the run file, summary accumulators).
 //
 // File format (one binary file per checkpoint, little-endian as written by x86-64/aarch64):
@@ -75,10 +75,14 @@ struct Checkpoint {
   DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
   RunProgress progress;              ///< run-loop bookkeeping
   RestWatch rest;                    ///< the at-rest watcher's memory (until = "rest")
+  /// Held self-gravity field (StepWorkspace::held_gravity, [gravity] evaluate_every > 1), so a
+  /// resumed run reuses the same field for the same steps; empty otherwise.
+  std::vector<Vec3> held_gravity;
+  std::int64_t held_gravity_step = -1;  ///< state.step at which held_gravity was evaluated (-1: none)
 };
 
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).
-inline constexpr std::uint32_t checkpoint_format_version = 1;
+inline constexpr std::uint32_t checkpoint_format_version = 2;  // 2: held gravity field
 
 /// CRC-64/XZ of `bytes`, continuing from `crc` (pass the previous result to chain; 0 to start).
 std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);

@@ -183,6 +183,8 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     state = from.state;
     workspace.contacts = from.contacts;
     workspace.detection_memory = from.detection_memory;
+    workspace.held_gravity = from.held_gravity;
+    workspace.held_gravity_step = from.held_gravity_step;
     progress = from.progress;  // the snapshot period stays that of the first session
     file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
     if (file->series_rows() != progress.series_rows || file->snapshot_count() != progress.snapshots) {
@@ -219,7 +221,8 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     progress.series_rows = file->series_rows();
     progress.snapshots = file->snapshot_count();
     Checkpoint checkpoint{control.scene_text, control.scene_source, run.end_time, run.seed, state,
-                          workspace.contacts,  workspace.detection_memory, progress, RestWatch{}};
+                          workspace.contacts,  workspace.detection_memory, progress, RestWatch{},
+                          workspace.held_gravity, workspace.held_gravity_step};
     checkpoint.rest.armed = rest.armed;
     checkpoint.rest.below = rest.below_since.has_value();
     checkpoint.rest.below_since = rest.below_since.value_or(0.0);

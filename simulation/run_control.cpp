@@ -66,6 +66,24 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
       scales.characteristic_time = g > 0.0 ? std::sqrt(2.0 * height / g) : infinity;
       break;
     }
+    case GravitySettings::Kind::central: {
+      // A grain falling from rest at the cloud's farthest point r0 to a grain radius from the centre
+      // (closer than that it meets other grains), in the softened field: energy conservation,
+      // v = sqrt(2 G M (1/sqrt(r1^2 + eps^2) - 1/sqrt(r0^2 + eps^2))). Time: the free-fall time
+      // scale sqrt(r0^3 / (G M)) (Kepler).
+      const CentralField& c = gravity.central;
+      double r0 = 0.0;
+      for (std::size_t b = 0; b < model.body_count(); ++b) {
+        if (model.is_grain(b) && !model.is_fixed(b)) r0 = std::max(r0, (state.position[b] - c.centre).norm());
+      }
+      const double r1 = std::min(0.5 * scales.min_diameter, r0);
+      const double eps2 = c.softening * c.softening;
+      const double GM = c.G * c.mass;
+      scales.reference_velocity =
+          std::sqrt(std::max(0.0, 2.0 * GM * (1.0 / std::sqrt(r1 * r1 + eps2) - 1.0 / std::sqrt(r0 * r0 + eps2))));
+      scales.characteristic_time = GM > 0.0 ? std::sqrt((r0 * r0 * r0 + eps2 * std::sqrt(eps2)) / GM) : infinity;
+      break;
+    }
     case GravitySettings::Kind::none:
       scales.reference_velocity = max_speed;
       scales.characteristic_time = max_speed > 0.0 ? scales.min_diameter / max_speed : infinity;

@@ -577,7 +577,7 @@ class SceneParser {
       gravity.kind = GravitySettings::Kind::none;
       return;
     }
-    const std::string type = table->choice("type", {"none", "uniform", "direct", "tree"});
+    const std::string type = table->choice("type", {"none", "uniform", "direct", "tree", "central"});
     if (type == "none") {
       table->allow_only({"type"}, "for [gravity] type = \"none\"");
       gravity.kind = GravitySettings::Kind::none;
@@ -585,14 +585,25 @@ class SceneParser {
       table->allow_only({"type", "acceleration"}, "for [gravity] type = \"uniform\"");
       gravity.kind = GravitySettings::Kind::uniform;
       gravity.acceleration = table->vec3("acceleration");
+    } else if (type == "central") {
+      // A fixed point mass (step.hpp, CentralField): Plummer-softened Kepler field.
+      table->allow_only({"type", "centre", "mass", "G", "softening"}, "for [gravity] type = \"central\"");
+      gravity.kind = GravitySettings::Kind::central;
+      auto& central = gravity.central;
+      central.centre = table->vec3("centre");
+      central.mass = table->number("mass", positive());
+      central.G = table->number_or("G", units::gravitational_constant, positive());
+      central.softening = table->number_or("softening", 0.0, non_negative());
     } else {
       const bool tree = type == "tree";
       if (tree) {
-        table->allow_only({"type", "G", "softening", "theta", "order", "leaf_size", "group_size"},
+        table->allow_only({"type", "G", "softening", "theta", "order", "leaf_size", "group_size", "evaluate_every"},
                           "for [gravity] type = \"tree\"");
       } else {
-        table->allow_only({"type", "G", "softening"}, "for [gravity] type = \"direct\"");
+        table->allow_only({"type", "G", "softening", "evaluate_every"}, "for [gravity] type = \"direct\"");
       }
+      // Held field between evaluations (step.cpp); capped so a typo cannot freeze gravity for a run.
+      gravity.evaluate_every = static_cast<int>(table->integer_or("evaluate_every", 1, 1, 1'000'000));
       gravity.kind = GravitySettings::Kind::self;
       auto& self = gravity.self_gravity;
       self.method = tree ? gravity::Method::tree : gravity::Method::direct;
@@ -1415,7 +1426,17 @@ std::string scene_to_toml(const Scene& scene) {
         out << "leaf_size = " << self.leaf_size << "\n";
         out << "group_size = " << self.group_size << "\n";
       }
+      if (gravity.evaluate_every != 1) out << "evaluate_every = " << gravity.evaluate_every << "\n";
       out << "\n";
+      break;
+    }
+    case GravitySettings::Kind::central: {
+      const CentralField& central = gravity.central;
+      out << "type = \"central\"\n";
+      out << "centre = " << format_vec3(central.centre) << "\n";
+      out << "mass = " << format_number(central.mass) << "\n";
+      out << "G = " << format_number(central.G) << "\n";
+      out << "softening = " << format_number(central.softening) << "\n\n";
       break;
     }
   }

@@ -1,6 +1,7 @@
 #include "simulation/step.hpp"
 
 #include <chrono>
+#include <cmath>
 
 namespace rubble {
 namespace {
@@ -23,9 +24,38 @@ class StageTimer {
   Clock::time_point start_;
 };
 
+/// Self-gravity acceleration of every body (zero for fixed bodies): point masses at the grains'
+/// centres of mass (seed 001 sec. 2.3), by direct sum or tree.
+void self_gravity_accelerations(const Model& model, const State& state, const gravity::GravityOptions& options,
+                                std::vector<Vec3>& acceleration_out) {
+  std::vector<std::size_t> grains;
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_fixed(b)) grains.push_back(b);
+  }
+  std::vector<double> positions(3 * grains.size()), masses(grains.size());
+  for (std::size_t k = 0; k < grains.size(); ++k) {
+    for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
+    masses[k] = model.mass[grains[k]];
+  }
+  std::vector<double> acceleration(3 * grains.size());
+  gravity::compute_field(options, positions, masses, acceleration, {});
+  acceleration_out.assign(model.body_count(), Vec3::Zero());
+  for (std::size_t k = 0; k < grains.size(); ++k) {
+    acceleration_out[grains[k]] = Vec3(acceleration[3 * k], acceleration[3 * k + 1], acceleration[3 * k + 2]);
+  }
+}
+
 /// Stage 1: external forces on every body at the start of the step (gravity; walls get none).
+/// With evaluate_every = k > 1 the self-gravity field is evaluated at steps n, n+k, ... and held in
+/// between: the grains' forces stay m a(t_n) for t in [t_n, t_n + k h). The simplest multiple time
+/// step scheme: its error in the acceleration used is a(t_n) - a(t) = O((t - t_n) |da/dt|), i.e.
+/// O(k h |da/dt|) at worst per step, first order in k h (a time-interpolated or impulse (r-RESPA,
+/// Tuckerman et al. 1992) scheme would be second order but needs the field at two times or a
+/// symplectic split). It pays where the field changes slowly against the contact time step: a
+/// cloud's free-fall time is ~1/sqrt(G rho) while h is set by grain travel per step.
 void compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
-                             std::vector<Vec3>& force) {
+                             StepWorkspace& workspace) {
+  std::vector<Vec3>& force = workspace.force;
   force.assign(model.body_count(), Vec3::Zero());
   switch (gravity.kind) {
     case GravitySettings::Kind::none:
@@ -33,21 +63,32 @@ void compute_external_forces(const Model& model, const State& state, const Gravi
     case GravitySettings::Kind::uniform:
       for (std::size_t b = 0; b < model.body_count(); ++b) force[b] = model.mass[b] * gravity.acceleration;
       return;
-    case GravitySettings::Kind::self: {
-      // Point masses at the grains' centres of mass (seed 001 sec. 2.3).
-      std::vector<std::size_t> grains;
+    case GravitySettings::Kind::central:
       for (std::size_t b = 0; b < model.body_count(); ++b) {
-        if (!model.is_fixed(b)) grains.push_back(b);
+        if (!model.is_fixed(b)) force[b] = model.mass[b] * central_acceleration(gravity.central, state.position[b]);
       }
-      std::vector<double> positions(3 * grains.size()), masses(grains.size());
-      for (std::size_t k = 0; k < grains.size(); ++k) {
-        for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
-        masses[k] = model.mass[grains[k]];
+      return;
+    case GravitySettings::Kind::self: {
+      if (gravity.evaluate_every <= 1) {
+        // Every step: no field is held (and a checkpoint carries none).
+        workspace.held_gravity.clear();
+        workspace.held_gravity_step = -1;
+        std::vector<Vec3> acceleration;
+        self_gravity_accelerations(model, state, gravity.self_gravity, acceleration);
+        for (std::size_t b = 0; b < model.body_count(); ++b) {
+          if (!model.is_fixed(b)) force[b] = model.mass[b] * acceleration[b];
+        }
+        return;
       }
-      std::vector<double> acceleration(3 * grains.size());
-      gravity::compute_field(gravity.self_gravity, positions, masses, acceleration, {});
-      for (std::size_t k = 0; k < grains.size(); ++k) {
-        force[grains[k]] = masses[k] * Vec3(acceleration[3 * k], acceleration[3 * k + 1], acceleration[3 * k + 2]);
+      const bool stale = workspace.held_gravity.size() != model.body_count() || workspace.held_gravity_step < 0 ||
+                         state.step < workspace.held_gravity_step ||
+                         state.step - workspace.held_gravity_step >= gravity.evaluate_every;
+      if (stale) {
+        self_gravity_accelerations(model, state, gravity.self_gravity, workspace.held_gravity);
+        workspace.held_gravity_step = state.step;
+      }
+      for (std::size_t b = 0; b < model.body_count(); ++b) {
+        if (!model.is_fixed(b)) force[b] = model.mass[b] * workspace.held_gravity[b];
       }
       return;
     }
@@ -55,6 +96,13 @@ void compute_external_forces(const Model& model, const State& state, const Gravi
 }
 
 }  // namespace
+
+Vec3 central_acceleration(const CentralField& field, const Vec3& position) {
+  const Vec3 offset = position - field.centre;
+  const double r2 = offset.squaredNorm() + field.softening * field.softening;
+  if (!(r2 > 0.0)) return Vec3::Zero();  // at the centre of an unsoftened field: by symmetry, no pull
+  return (-field.G * field.mass / (r2 * std::sqrt(r2))) * offset;
+}
 
 std::string_view stage_name(Stage stage) {
   switch (stage) {
@@ -75,8 +123,8 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   StepReport report;
   StageTimer timer(report);
 
-  // 1. external_forces: gravity (uniform or self-gravity) at the start of the step.
-  compute_external_forces(model, state, options.gravity, workspace.force);
+  // 1. external_forces: gravity (uniform, central or self-gravity, the latter possibly held) at the start of the step.
+  compute_external_forces(model, state, options.gravity, workspace);
   timer.finish(Stage::external_forces);
 
   // 2. free_velocity: v_free = v + h M^-1 f (+ gyroscopic torque).

@@ -2,23 +2,44 @@
 // One Moreau-Jean time step, as named stages in order (see step.cpp). This is the only place
 // that calls every stage; no stage calls it.
 #include <array>
+#include <cstdint>
 #include <string_view>
 
 #include "contact_detection/detection.hpp"
 #include "core/integrator.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "core/units.hpp"
 #include "gravity/gravity.hpp"
 #include "nlgs_solver/nlgs.hpp"
 
 namespace rubble {
 
+/// A fixed point mass M at `centre` pulling every grain (Kind::central):
+///   a(x) = -G M (x - c) / (|x - c|^2 + eps^2)^(3/2),
+/// the Plummer-softened Kepler field (Plummer 1911; Binney & Tremaine, Galactic Dynamics, eq. 2.44a):
+/// exact 1/r^2 for |x - c| >> eps, finite (and going linearly to 0) at the centre, so a grain
+/// reaching c meets no singular force.
+struct CentralField {
+  Vec3 centre = Vec3::Zero();  ///< c, m
+  double mass = 0.0;           ///< M, kg
+  double G = units::gravitational_constant;  ///< gravitational constant, m^3 kg^-1 s^-2
+  double softening = 0.0;      ///< eps, m (0: the exact point-mass field)
+};
+
+/// The acceleration of the central field at `position`.
+Vec3 central_acceleration(const CentralField& field, const Vec3& position);
+
 /// Which gravity acts on the grains.
 struct GravitySettings {
-  enum class Kind { none, uniform, self };
-  Kind kind = Kind::none;                          ///< none, a uniform field, or self-gravity
+  enum class Kind { none, uniform, self, central };
+  Kind kind = Kind::none;                          ///< none, a uniform field, self-gravity or a central mass
   Vec3 acceleration = Vec3::Zero();                ///< m/s^2, for Kind::uniform
   gravity::GravityOptions self_gravity{};          ///< for Kind::self (direct or tree, G, theta, order)
+  CentralField central{};                          ///< for Kind::central
+  /// For Kind::self: the field is evaluated every `evaluate_every` steps and held in between
+  /// (StepWorkspace::held_gravity); 1 = every step, the exact scheme.
+  int evaluate_every = 1;
 };
 
 /// Everything one step needs to know besides the model and the state.
@@ -49,6 +70,11 @@ struct StepWorkspace {
   DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
   std::vector<Vec3> force;           ///< scratch: external force per body
   BodyVelocities velocity;           ///< scratch: free, then end-of-step velocities
+  /// Self-gravity acceleration per body (m/s^2; zero for walls) as last evaluated, reused until
+  /// GravitySettings::evaluate_every steps have passed. Empty when evaluate_every = 1.
+  std::vector<Vec3> held_gravity;
+  /// state.step at which held_gravity was evaluated (-1: never).
+  std::int64_t held_gravity_step = -1;
 };
 
 /// Advances `state` by one step of the Moreau-Jean theta-method.

@@ -60,6 +60,8 @@ Checkpoint sample_checkpoint(std::int64_t step = 1234) {
   c.detection_memory.common_normals = {Vec3(0, 0, 1), Vec3(0.6, 0.8, 0)};
   c.progress = RunProgress{0, 5000, 50, step, 25, 4321.0, 7.5e-5, 3, 12.5};
   c.rest = RestWatch{true, true, 0.0625, {{0.01, -3.5}, {0.02, -4.25}}, 0.05};
+  c.held_gravity = {Vec3(1e-9, -2.5, 0.0), Vec3(-0.0, 3.0, 1e300), Vec3::Zero()};
+  c.held_gravity_step = step - 1;
   return c;
 }
 
@@ -106,6 +108,8 @@ TEST(CheckpointFormat, RoundTripIsBitExact) {
   EXPECT_EQ(back.rest.below_since, 0.0625);
   EXPECT_EQ(back.rest.history, original.rest.history);
   EXPECT_EQ(back.rest.decay_window, 0.05);
+  EXPECT_EQ(back.held_gravity, original.held_gravity);
+  EXPECT_EQ(back.held_gravity_step, original.held_gravity_step);
 }
 
 TEST(CheckpointFormat, EveryTruncationIsRejected) {

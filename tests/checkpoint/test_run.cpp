@@ -191,6 +191,50 @@ TEST(Restart, ACheckpointOfAnotherSceneIsRefused) {
   EXPECT_THROW(run_scene(scene, resume), CheckpointError);
 }
 
+// Self-gravity evaluated every 3 steps ([gravity] evaluate_every): the field held between
+// evaluations is saved in the checkpoint, so a run resumed at step 40 (field evaluated at step 39)
+// uses the same field for steps 40 and 41 and ends bit for bit where the uninterrupted run ends.
+// Control: the same resume without the held field (evaluated afresh at step 40) ends elsewhere,
+// so the test can tell. G = 0.5 makes the grains' mutual pull ~10 m/s^2, like the lab's g.
+TEST(Restart, HeldSelfGravityFieldSurvivesTheCheckpoint) {
+  std::string text = scene_text;
+  const std::string uniform = "type = \"uniform\"\nacceleration = [0.0, 0.0, -9.81]";
+  text.replace(text.find(uniform), uniform.size(), "type = \"direct\"\nG = 0.5\nevaluate_every = 3");
+  const auto make_scene = [&](const std::string& name) {
+    Scene scene = parse_scene(text, "restart-held.toml");
+    scene.run.output.directory =
+        (fs::temp_directory_path() / ("rubble_test_run_" + name + "_" + std::to_string(::getpid()))).string();
+    fs::remove_all(scene.run.output.directory);
+    return scene;
+  };
+  RunControl control = control_for();
+  control.scene_text = text;
+  control.scene_source = "restart-held.toml";
+  const Scene reference_scene = make_scene("held_reference");
+  ASSERT_EQ(reference_scene.run.step.gravity.evaluate_every, 3);
+  const RunSummary reference = run_scene(reference_scene, control);
+
+  const Scene scene = make_scene("held");
+  RunControl checkpointed = control;
+  checkpointed.checkpoint_every_steps = 40;
+  checkpointed.checkpoints_kept = 100;
+  run_scene(scene, checkpointed);
+  const fs::path at_40 = checkpoint_folder(scene.run.output.directory) / "step-000000000040.ckpt";
+  const Checkpoint checkpoint = read_checkpoint(at_40);
+  EXPECT_EQ(checkpoint.held_gravity_step, 39);
+  ASSERT_EQ(checkpoint.held_gravity.size(), checkpoint.state.body_count());
+
+  RunControl resume = checkpointed;
+  resume.resume = &checkpoint;
+  EXPECT_EQ(run_scene(scene, resume).state_hash, reference.state_hash);
+
+  Checkpoint without_field = checkpoint;
+  without_field.held_gravity.clear();
+  without_field.held_gravity_step = -1;
+  resume.resume = &without_field;
+  EXPECT_NE(run_scene(scene, resume).state_hash, reference.state_hash);
+}
+
 /// Runs `scene` and returns the NumericalFailure's message ("" if none).
 std::string failure_of(const Scene& scene, const RunControl& control) {
   try {
