@@ -4,7 +4,7 @@
 // and prints one JSON line (N, method, theta, order, threads, build/walk/total seconds).
 // Invalid input -> message on stderr naming the file and the problem, exit code 2.
 
-#include <hdf5.h>
+#include "core/hdf5_io.hpp"
 #include <omp.h>
 
 #include <chrono>
@@ -41,39 +41,8 @@ struct BadInput : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Owns an HDF5 identifier and closes it with the matching H5*close function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-/// HDF5 prints its own error stack by default; the command reports errors itself. Restores the
-/// previous handler on scope exit.
-class QuietHdf5 {
- public:
-  QuietHdf5() {
-    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  }
-  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
-  QuietHdf5(const QuietHdf5&) = delete;
-  QuietHdf5& operator=(const QuietHdf5&) = delete;
-
- private:
-  H5E_auto2_t func_ = nullptr;
-  void* data_ = nullptr;
-};
+using hdf5::Handle;
+using QuietHdf5 = hdf5::QuietErrors;
 
 /// Reads a numeric dataset as doubles and returns its dimensions. Throws BadInput.
 std::vector<double> read_dataset(hid_t file, const std::string& path, const std::string& name,
@@ -81,7 +50,7 @@ std::vector<double> read_dataset(hid_t file, const std::string& path, const std:
   if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0)
     throw BadInput(path + ": missing dataset '" + name + "'");
   Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (!ds.valid()) throw BadInput(path + ": '" + name + "' is not a dataset");
+  if (!ds) throw BadInput(path + ": '" + name + "' is not a dataset");
   Handle type(H5Dget_type(ds.get()), H5Tclose);
   const H5T_class_t cls = H5Tget_class(type.get());
   if (cls != H5T_FLOAT && cls != H5T_INTEGER)
@@ -112,7 +81,7 @@ void write_dataset(hid_t file, const std::string& path, const char* name,
   Handle ds(H5Dcreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
                        H5P_DEFAULT),
             H5Dclose);
-  if (!ds.valid() || (!values.empty() && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
+  if (!ds || (!values.empty() && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
                                                   H5P_DEFAULT, values.data()) < 0))
     throw std::runtime_error(path + ": cannot write dataset '" + name + "'");
 }
@@ -120,7 +89,7 @@ void write_dataset(hid_t file, const std::string& path, const char* name,
 void write_attribute(hid_t file, const char* name, double value) {
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   Handle attr(H5Acreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  if (attr.valid()) H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value);
+  if (attr) H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value);
 }
 
 int gravity_command(const GravityArguments& args) {
@@ -152,7 +121,7 @@ int gravity_command(const GravityArguments& args) {
     if (!std::filesystem::exists(in, ec)) throw BadInput(in + ": no such file");
     if (H5Fis_hdf5(in.c_str()) <= 0) throw BadInput(in + ": not an HDF5 file");
     Handle file(H5Fopen(in.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!file.valid()) throw BadInput(in + ": cannot open the HDF5 file");
+    if (!file) throw BadInput(in + ": cannot open the HDF5 file");
     std::vector<hsize_t> pdims, mdims;
     const std::vector<double> positions = read_dataset(file.get(), in, "positions", pdims);
     const std::vector<double> masses = read_dataset(file.get(), in, "masses", mdims);
@@ -188,7 +157,7 @@ int gravity_command(const GravityArguments& args) {
     // ---- output
     if (!args.output.empty()) {
       Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-      if (!out.valid()) {
+      if (!out) {
         std::cerr << "rubble gravity: error: " << args.output << ": cannot create the output file\n";
         return exit_failure;
       }

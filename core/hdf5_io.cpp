@@ -1,4 +1,4 @@
-#include "postprocessing/hdf5_io.hpp"
+#include "core/hdf5_io.hpp"
 
 #include <algorithm>
 #include <numeric>

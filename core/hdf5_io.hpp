@@ -1,7 +1,8 @@
 #pragma once
-// Small RAII and typed helpers over the HDF5 C API, shared by the run-file writer, the run-file
-// reader and the metrics writer of this folder. Internal to postprocessing/ (it includes hdf5.h):
-// public headers of this folder do not include it.
+// Small RAII and typed helpers over the HDF5 C API, shared by every file format rubble reads or
+// writes (run files in postprocessing/, FCLib problems in nlgs_solver/, `rubble gravity` in apps/).
+// It includes hdf5.h, so only .cpp files include it; its own library, rubble_hdf5_io, is linked
+// only by the folders that do HDF5 input/output.
 #include <hdf5.h>
 
 #include <cstdint>

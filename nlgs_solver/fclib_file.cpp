@@ -1,6 +1,6 @@
 #include "nlgs_solver/fclib_file.hpp"
 
-#include <hdf5.h>
+#include "core/hdf5_io.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -13,40 +13,8 @@
 namespace rubble {
 namespace {
 
-/// Owns an HDF5 identifier and closes it with the matching H5*close function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
-  Handle& operator=(Handle&&) = delete;
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-/// HDF5 prints its own error stack by default; errors are reported here as exceptions instead.
-class QuietHdf5 {
- public:
-  QuietHdf5() {
-    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  }
-  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
-  QuietHdf5(const QuietHdf5&) = delete;
-  QuietHdf5& operator=(const QuietHdf5&) = delete;
-
- private:
-  H5E_auto2_t func_ = nullptr;
-  void* data_ = nullptr;
-};
+using hdf5::Handle;
+using QuietHdf5 = hdf5::QuietErrors;
 
 /// A file opened for reading, with the file name for messages.
 struct Reader {
@@ -70,7 +38,7 @@ struct Reader {
   Handle open(const std::string& path, hsize_t& count) const {
     if (!exists(path)) fail(path, "missing dataset");
     Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!dataset.valid()) fail(path, "not a dataset");
+    if (!dataset) fail(path, "not a dataset");
     Handle space(H5Dget_space(dataset.get()), H5Sclose);
     const hssize_t points = H5Sget_simple_extent_npoints(space.get());
     if (points < 0) fail(path, "cannot read the dataset's shape");
@@ -122,7 +90,7 @@ struct Reader {
   std::string text(const std::string& path) const {
     if (!exists(path)) return "";
     Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!dataset.valid()) return "";
+    if (!dataset) return "";
     Handle type(H5Dget_type(dataset.get()), H5Tclose);
     if (H5Tget_class(type.get()) != H5T_STRING) return "";
     Handle space(H5Dget_space(dataset.get()), H5Sclose);
@@ -189,7 +157,7 @@ void write_dataset(hid_t location, const std::string& file, const std::string& p
   Handle space(H5Screate_simple(1, &count, nullptr), H5Sclose);
   Handle dataset(H5Dcreate2(location, path.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                  H5Dclose);
-  if (!dataset.valid() || (count > 0 && H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)) {
+  if (!dataset || (count > 0 && H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)) {
     throw FclibFileError(file + ": " + path + ": cannot write the dataset");
   }
 }
@@ -209,20 +177,20 @@ void write_text(hid_t location, const std::string& file, const std::string& path
   Handle dataset(H5Dcreate2(location, path.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                  H5Dclose);
   std::string buffer = value.empty() ? std::string(1, '\0') : value;
-  if (!dataset.valid() || H5Dwrite(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
+  if (!dataset || H5Dwrite(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
     throw FclibFileError(file + ": " + path + ": cannot write the dataset");
   }
 }
 
 Handle create_file(const std::filesystem::path& file) {
   Handle handle(H5Fcreate(file.string().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  if (!handle.valid()) throw FclibFileError(file.string() + ": cannot create the HDF5 file");
+  if (!handle) throw FclibFileError(file.string() + ": cannot create the HDF5 file");
   return handle;
 }
 
 void create_group(hid_t file, const std::string& name, const std::string& path) {
   Handle group(H5Gcreate2(file, path.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-  if (!group.valid()) throw FclibFileError(name + ": " + path + ": cannot create the group");
+  if (!group) throw FclibFileError(name + ": " + path + ": cannot create the group");
 }
 
 Handle open_for_reading(const std::filesystem::path& file) {
@@ -231,7 +199,7 @@ Handle open_for_reading(const std::filesystem::path& file) {
   if (!std::filesystem::exists(file, ec)) throw FclibFileError(name + ": no such file");
   if (H5Fis_hdf5(name.c_str()) <= 0) throw FclibFileError(name + ": not an HDF5 file");
   Handle handle(H5Fopen(name.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!handle.valid()) throw FclibFileError(name + ": cannot open the HDF5 file");
+  if (!handle) throw FclibFileError(name + ": cannot open the HDF5 file");
   return handle;
 }
 

@@ -10,7 +10,7 @@
 #include <ostream>
 #include <stdexcept>
 
-#include "postprocessing/hdf5_io.hpp"
+#include "core/hdf5_io.hpp"
 #include "postprocessing/run_reader.hpp"
 #include "postprocessing/vtk_output.hpp"
 

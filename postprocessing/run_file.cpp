@@ -8,7 +8,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "postprocessing/hdf5_io.hpp"
+#include "core/hdf5_io.hpp"
 
 #ifndef RUBBLE_VERSION
 #define RUBBLE_VERSION "unknown"

@@ -5,7 +5,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "postprocessing/hdf5_io.hpp"
+#include "core/hdf5_io.hpp"
 #include "postprocessing/run_file.hpp"
 
 namespace rubble {
