@@ -67,8 +67,13 @@ struct RunArguments {
   double max_speed = 0.0;
   bool no_runaway_check = false;
   bool print_default = false;
+  std::string default_scene = "spheres";  ///< without SCENE: "spheres" or "polyhedra"
   bool quiet = false;
 };
+
+DefaultScene default_variant(const RunArguments& args) {
+  return args.default_scene == "polyhedra" ? DefaultScene::polyhedra : DefaultScene::spheres;
+}
 
 int bad_input(const std::string& message) {
   std::cerr << "rubble run: error: " << message << "\n";
@@ -109,7 +114,7 @@ int run_command(const RunArguments& args) {
       }
       control.resume = &loaded.checkpoint;
     } else if (args.scene_path.empty()) {
-      control.scene_text = default_scene_toml();
+      control.scene_text = default_scene_toml(default_variant(args));
       control.scene_source = "<built-in default scene>";
       scene = parse_scene(control.scene_text, control.scene_source);
     } else {
@@ -214,7 +219,7 @@ void register_run_command(CLI::App& app) {
   const auto positive = number("a finite number > 0", [](double v) { return v > 0.0; });
   const auto non_negative = number("a finite number >= 0", [](double v) { return v >= 0.0; });
   const auto count = number("an integer >= 0", [](double v) { return v >= 0.0 && v == std::floor(v); });
-  run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
+  CLI::Option* scene_option = run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
   run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
       ->check(positive);
@@ -232,10 +237,14 @@ void register_run_command(CLI::App& app) {
       ->check(positive);
   run->add_flag("--no-runaway-check", args->no_runaway_check, "Only stop on non-finite values, not on speed");
   run->add_flag("--print-default-scene", args->print_default, "Print the built-in default scene as TOML and exit");
+  run->add_option("--default-scene", args->default_scene,
+                  "Without SCENE: the study's 1000 spheres (default) or the same accretion with random polyhedra")
+      ->check(CLI::IsMember({"spheres", "polyhedra"}))
+      ->excludes(scene_option);
   run->add_flag("-q,--quiet", args->quiet, "No progress lines");
   run->callback([args] {
     if (args->print_default) {
-      std::cout << default_scene_toml();
+      std::cout << default_scene_toml(default_variant(*args));
       return;
     }
     const int code = run_command(*args);

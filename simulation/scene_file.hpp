@@ -38,14 +38,18 @@ Scene load_scene_file(const std::filesystem::path& path);
 /// relative paths). Throws SceneError.
 Scene parse_scene(std::string_view toml_text, const std::string& source_name);
 
+/// Which built-in scene: the study's spheres (the default) or the same set-up with polyhedra.
+enum class DefaultScene { spheres, polyhedra };
+
 /// The built-in scene `rubble run` uses without a scene file: the accretion of a thousand
-/// spheres under self-gravity, run until they are at rest (seed 001's set-up). Equal to
-/// parse_scene(default_scene_toml(), ...).
-Scene default_scene();
+/// spheres (or polyhedra) under self-gravity, run until they are at rest (seed 001's set-up).
+/// Equal to parse_scene(default_scene_toml(variant), ...).
+Scene default_scene(DefaultScene variant = DefaultScene::spheres);
 
 /// The built-in scene as scene-file text (what `rubble run --print-default-scene` prints;
-/// examples/accretion-1000.toml holds the same text).
-std::string default_scene_toml();
+/// examples/accretion-1000.toml holds the spheres' text, examples/accretion-1000-polyhedra.toml
+/// the polyhedra's).
+std::string default_scene_toml(DefaultScene variant = DefaultScene::spheres);
 
 /// Writes a scene as scene-file text with every grain and wall listed explicitly (generators
 /// expanded), such that parse_scene(scene_to_toml(s)) gives back the same model and state when

@@ -251,6 +251,26 @@ TEST(DefaultScene, IsTheExampleFileAndLoadsFromIt) {
   }
 }
 
+// The polyhedra variant (`rubble run --default-scene polyhedra`): the same set-up, 1000 random
+// polyhedra (every grain a polyhedron, none a sphere), and the example file holds its text.
+TEST(DefaultScene, PolyhedraVariantIsTheExampleFileAndHoldsOnlyPolyhedra) {
+  const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion-1000-polyhedra.toml";
+  EXPECT_EQ(read_text(example), default_scene_toml(DefaultScene::polyhedra))
+      << "regenerate with: rubble run --default-scene polyhedra --print-default-scene > examples/accretion-1000-polyhedra.toml";
+  const Scene scene = default_scene(DefaultScene::polyhedra);
+  const Scene spheres = default_scene();
+  std::size_t polyhedra = 0, grains = 0;
+  for (std::size_t b = 0; b < scene.model.body_count(); ++b) {
+    if (!scene.model.is_grain(b)) continue;
+    ++grains;
+    if (scene.model.shape_kind[b] == ShapeKind::polyhedron) ++polyhedra;
+  }
+  EXPECT_EQ(grains, 1000u);
+  EXPECT_EQ(polyhedra, grains);
+  EXPECT_EQ(scene.run.step.gravity.kind, spheres.run.step.gravity.kind);
+  EXPECT_EQ(scene.run.end_time, spheres.run.end_time);
+}
+
 TEST(Examples, EveryExampleFileParses) {
   std::size_t count = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RUBBLE_EXAMPLES_DIR)) {
