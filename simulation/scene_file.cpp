@@ -549,7 +549,7 @@ class SceneParser {
     const auto solver = root_.optional_table("solver");
     if (!solver) return;
     solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
-                        "max_correction_velocity"},
+                        "max_correction_velocity", "polish_after", "polish_iterations", "polish_max_contacts"},
                        "in [solver]");
     auto& options = scene_.run.step.solver;
     options.tolerance = solver->number_or("tolerance", options.tolerance, positive());
@@ -561,6 +561,11 @@ class SceneParser {
         solver->number_or("penetration_correction", options.penetration_correction, closed(0.0, 1.0));
     options.max_correction_velocity =
         solver->number_or("max_correction_velocity", options.max_correction_velocity, non_negative());
+    options.polish_after = static_cast<int>(solver->integer_or("polish_after", options.polish_after, 0, 100'000'000));
+    options.polish_iterations =
+        static_cast<int>(solver->integer_or("polish_iterations", options.polish_iterations, 1, 10'000));
+    options.polish_max_contacts = static_cast<std::size_t>(
+        solver->integer_or("polish_max_contacts", static_cast<std::int64_t>(options.polish_max_contacts), 0, 100'000'000));
   }
 
   void parse_detection() {
@@ -1418,7 +1423,10 @@ std::string scene_to_toml(const Scene& scene) {
   out << "relaxation = " << format_number(solver.relaxation) << "\n";
   out << "warm_start = " << (solver.warm_start ? "true" : "false") << "\n";
   out << "penetration_correction = " << format_number(solver.penetration_correction) << "\n";
-  out << "max_correction_velocity = " << format_number(solver.max_correction_velocity) << "\n\n";
+  out << "max_correction_velocity = " << format_number(solver.max_correction_velocity) << "\n";
+  out << "polish_after = " << solver.polish_after << "\n";
+  out << "polish_iterations = " << solver.polish_iterations << "\n";
+  out << "polish_max_contacts = " << solver.polish_max_contacts << "\n\n";
 
   out << "[detection]\n";
   out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n\n";

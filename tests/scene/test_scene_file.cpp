@@ -30,6 +30,9 @@ relaxation = 0.9
 warm_start = false
 penetration_correction = 0.5
 max_correction_velocity = 0.25
+polish_after = 15
+polish_iterations = 7
+polish_max_contacts = 500
 [detection]
 alert_distance = 0.001
 [gravity]
@@ -91,6 +94,9 @@ TEST(ParseScene, GoodSceneGivesItsModelStateAndOptions) {
   EXPECT_FALSE(scene.run.step.solver.warm_start);
   EXPECT_EQ(scene.run.step.solver.penetration_correction, 0.5);
   EXPECT_EQ(scene.run.step.solver.max_correction_velocity, 0.25);
+  EXPECT_EQ(scene.run.step.solver.polish_after, 15);
+  EXPECT_EQ(scene.run.step.solver.polish_iterations, 7);
+  EXPECT_EQ(scene.run.step.solver.polish_max_contacts, 500u);
   EXPECT_EQ(scene.run.step.detection.alert_distance, 0.001);
   EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::uniform);
   EXPECT_EQ(scene.run.step.gravity.acceleration, Vec3(0, 0, -9.81));
