@@ -71,6 +71,20 @@ struct RunArguments {
   bool quiet = false;
 };
 
+/// "  time per stage: ..." with each stage's share of the summed stage and output time.
+std::string stage_breakdown(const RunSummary& summary) {
+  double total = summary.output_seconds;
+  for (const double s : summary.stage_seconds) total += s;
+  if (!(total > 0.0)) return "";
+  std::string text = "  time per stage (wall):";
+  for (std::size_t s = 0; s < summary.stage_seconds.size(); ++s) {
+    text += fmt::format(" {} {:.3g} s ({:.0f}%),", stage_name(static_cast<Stage>(s)), summary.stage_seconds[s],
+                        100.0 * summary.stage_seconds[s] / total);
+  }
+  text += fmt::format(" output {:.3g} s ({:.0f}%)\n", summary.output_seconds, 100.0 * summary.output_seconds / total);
+  return text;
+}
+
 DefaultScene default_variant(const RunArguments& args) {
   return args.default_scene == "polyhedra" ? DefaultScene::polyhedra : DefaultScene::spheres;
 }
@@ -171,7 +185,10 @@ int run_command(const RunArguments& args) {
               << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
               << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
               << summary.mean_iterations << ", max residual " << summary.max_residual << ", "
-              << summary.unconverged_steps << " steps at the iteration cap\n"
+              << summary.unconverged_steps << " steps at the iteration cap"
+              << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts) : std::string())
+              << "\n"
+              << stage_breakdown(summary)
               << "  output: " << summary.run_file.string() << " (" << summary.snapshots
               << " snapshots; layout in docs/output-format.md)\n"
               << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)

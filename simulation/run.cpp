@@ -269,6 +269,8 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     row.stage_seconds = report.stage_seconds;
     file->append_series(row);
 
+    for (std::size_t s = 0; s < summary.stage_seconds.size(); ++s) summary.stage_seconds[s] += report.stage_seconds[s];
+    summary.polish_attempts += report.solver.polish_attempts;
     progress.iteration_sum += report.solver.iterations;
     progress.max_residual = std::max(progress.max_residual, report.solver.residual);
     if (!report.solver.converged) ++progress.unconverged_steps;
@@ -289,6 +291,7 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     }
 
     const auto now = Clock::now();
+    summary.output_seconds += seconds_between(step_end, now);
     if (control.progress && (seconds_between(last_progress, now) >= run.output.progress_interval || at_end || stop)) {
       const double elapsed = seconds_between(start, now);
       const auto session_steps = static_cast<double>(state.step - summary.first_step);

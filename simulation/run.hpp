@@ -67,6 +67,10 @@ struct RunSummary {
   bool reached_rest = false;           ///< stopped because the grains were at rest (until = "rest")
   std::filesystem::path last_checkpoint;  ///< the checkpoint written last (empty if none)
   std::uint64_t state_hash = 0;        ///< state_hash() of the final state
+  /// s of wall time per stage of the step (Stage order), summed over this session's steps.
+  std::array<double, static_cast<std::size_t>(Stage::count)> stage_seconds{};
+  double output_seconds = 0.0;         ///< s of wall time writing series, snapshots and checkpoints
+  std::int64_t polish_attempts = 0;    ///< Newton polishes of the contact problem (SolverOptions::polish_after)
 };
 
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
