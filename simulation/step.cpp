@@ -123,7 +123,7 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   StepReport report;
   StageTimer timer(report);
 
-  // 1. external_forces: gravity (uniform, central or self-gravity, the latter possibly held) at the start of the step.
+  // 1. external_forces: gravity (uniform, central, or self-gravity, possibly held) at the start of the step.
   compute_external_forces(model, state, options.gravity, workspace);
   timer.finish(Stage::external_forces);
 

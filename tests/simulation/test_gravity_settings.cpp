@@ -187,7 +187,9 @@ TEST(EvaluateEvery, HoldsTheFieldBetweenEvaluationsAndMatchesADirectSumAtThem) {
   // field at the last step differs from the held one.
   const std::vector<Vec3> exact = direct_field(s);
   double change = 0.0;
-  for (std::size_t b = 0; b < exact.size(); ++b) change = std::max(change, (exact[b] - held[b]).norm() / exact[b].norm());
+  for (std::size_t b = 0; b < exact.size(); ++b) {
+    change = std::max(change, (exact[b] - held[b]).norm() / exact[b].norm());
+  }
   EXPECT_GT(change, 1e-6);
 }
 
@@ -240,7 +242,8 @@ softening = 0.25
 }
 
 TEST(GravityScene, EvaluateEveryIsReadAndWrittenBackAndDefaultsToOne) {
-  const Scene held = parse_scene(std::string(scene_head) + "[gravity]\ntype = \"tree\"\nevaluate_every = 8\n", "k.toml");
+  const Scene held =
+      parse_scene(std::string(scene_head) + "[gravity]\ntype = \"tree\"\nevaluate_every = 8\n", "k.toml");
   EXPECT_EQ(held.run.step.gravity.kind, GravitySettings::Kind::self);
   EXPECT_EQ(held.run.step.gravity.evaluate_every, 8);
   EXPECT_EQ(parse_scene(scene_to_toml(held), "back.toml").run.step.gravity.evaluate_every, 8);
