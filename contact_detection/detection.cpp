@@ -215,7 +215,23 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
                             DetectionMemory& memory, DetectionStats* stats) {
   const double alert = resolve_alert_distance(model, options);
   auto start = Clock::now();
-  const std::vector<BodyPair> pairs = find_candidate_pairs(model, state, alert);
+  const double margin = options.pair_list_margin < 0.0 ? alert : options.pair_list_margin;
+  // Verlet list: a pair's bounding boxes approach by at most the two bodies' displacements, so
+  // while every body has moved by less than margin / 2 the list holds every pair within alert.
+  bool rebuild = margin == 0.0 || memory.pair_list_margin != margin ||
+                 memory.pair_list_positions.size() != state.body_count();
+  if (!rebuild) {
+    const double limit = 0.25 * margin * margin;
+    for (std::size_t b = 0; b < state.body_count() && !rebuild; ++b) {
+      rebuild = (state.position[b] - memory.pair_list_positions[b]).squaredNorm() >= limit;
+    }
+  }
+  if (rebuild) {
+    memory.pair_list = find_candidate_pairs(model, state, alert + margin);
+    memory.pair_list_positions = state.position;
+    memory.pair_list_margin = margin;
+  }
+  const std::vector<BodyPair>& pairs = memory.pair_list;
   const double broad_seconds = seconds_since(start);
 
   start = Clock::now();
@@ -238,9 +254,13 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
     }
   }
   std::stable_sort(contacts.begin(), contacts.end(), [](const Contact& x, const Contact& y) { return x.id < y.id; });
+  if (stats) stats->candidate_pairs = pairs.size();
+  next.pair_list = std::move(memory.pair_list);  // `pairs` is not used below
+  next.pair_list_positions = std::move(memory.pair_list_positions);
+  next.pair_list_margin = memory.pair_list_margin;
   memory = std::move(next);
   if (stats) {
-    stats->candidate_pairs = pairs.size();
+    stats->pair_list_rebuilt = rebuild;
     stats->broad_phase_seconds = broad_seconds;
     stats->narrow_phase_seconds = seconds_since(start);
   }

@@ -17,6 +17,11 @@ struct DetectionOptions {
   /// to close within the step are known to the solver (LMGC90's alert distance). Zero picks
   /// 5% of the smallest grain radius.
   double alert_distance = 0.0;
+  /// m: the broad phase runs with the alert distance plus this margin, and its pairs are reused
+  /// until some body has moved by more than half the margin since (a Verlet list): no pair can
+  /// have come within the alert distance unseen, so the contacts are exactly those of a broad
+  /// phase every step. Negative: automatic (the alert distance); 0: a broad phase every step.
+  double pair_list_margin = -1.0;
 };
 
 /// A candidate pair from the broad phase, body_a < body_b.
@@ -29,6 +34,7 @@ struct BodyPair {
 /// What one detection call did, for the step's report.
 struct DetectionStats {
   std::size_t candidate_pairs = 0;  ///< pairs passed to the narrow phase
+  bool pair_list_rebuilt = false;   ///< the broad phase ran this step (else last list reused)
   double broad_phase_seconds = 0;   ///< wall time of the broad phase
   double narrow_phase_seconds = 0;  ///< wall time of the narrow phase
 };
@@ -38,6 +44,12 @@ struct DetectionStats {
 struct DetectionMemory {
   std::vector<BodyPair> pairs;         ///< sorted
   std::vector<Vec3> common_normals;    ///< world frame, one per pair
+  /// The broad phase's pairs within alert distance + margin (DetectionOptions::pair_list_margin),
+  /// and every body's position when they were found. Not saved in checkpoints: an empty list is
+  /// rebuilt, and a list from any earlier step gives the same contacts.
+  std::vector<BodyPair> pair_list;
+  std::vector<Vec3> pair_list_positions;  ///< m, per body, at the list's broad phase
+  double pair_list_margin = 0.0;          ///< m, the margin the list was built with
   /// The remembered normal for a pair, or nullptr.
   const Vec3* find(const BodyPair& pair) const;
 };

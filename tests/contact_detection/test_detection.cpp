@@ -1,6 +1,7 @@
 // Broad phase against brute force, determinism, and the warm-start matching.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "contact_detection/detection.hpp"
@@ -86,6 +87,37 @@ TEST(Detection, ContactsAreSortedAndTheirGapsAreTheSpheresDistance) {
     EXPECT_NEAR(x.frame.determinant(), 1.0, 1e-12);
   }
   EXPECT_EQ(contacts.size(), brute_force_pairs(c, 0.05).size());
+}
+
+// The Verlet pair list (DetectionOptions::pair_list_margin) must not change a single contact.
+// Reference: a broad phase at every step (margin 0), on a cloud whose grains random-walk by up to
+// 0.2 alert distances a step for 300 steps; the list must also have been reused most steps.
+TEST(Detection, PairListGivesTheContactsOfABroadPhaseEveryStep) {
+  Cloud c = random_cloud(400, 0.5, 1.0, 10.0, 5);
+  const double alert = 0.05;
+  DetectionOptions every_step{alert};
+  every_step.pair_list_margin = 0.0;
+  const DetectionOptions with_list{alert};  // automatic margin: the alert distance
+  DetectionMemory memory_every, memory_list;
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> step(-0.2 * alert / std::sqrt(3.0), 0.2 * alert / std::sqrt(3.0));
+  int reused = 0;
+  std::size_t checked = 0;
+  for (int k = 0; k < 300; ++k) {
+    DetectionStats stats;
+    const ContactList reference = detect_contacts(c.model, c.state, every_step, memory_every);
+    const ContactList listed = detect_contacts(c.model, c.state, with_list, memory_list, &stats);
+    if (!stats.pair_list_rebuilt) ++reused;
+    ASSERT_EQ(listed.size(), reference.size()) << "step " << k;
+    for (std::size_t i = 0; i < listed.size(); ++i) {
+      ASSERT_EQ(listed[i].id, reference[i].id) << "step " << k;
+      ASSERT_EQ(listed[i].gap, reference[i].gap) << "step " << k;
+    }
+    checked += listed.size();
+    for (auto& p : c.state.position) p += Vec3(step(rng), step(rng), step(rng));
+  }
+  EXPECT_GT(checked, 1000u);
+  EXPECT_GT(reused, 150);  // half a margin = 2.5 walks of 0.2 alert at most: rebuilt every few steps
 }
 
 TEST(MatchContacts, CarriesTheWorldImpulseIntoTheNewFrame) {
