@@ -571,8 +571,14 @@ class SceneParser {
   void parse_detection() {
     const auto detection = root_.optional_table("detection");
     if (!detection) return;
-    detection->allow_only({"alert_distance"}, "in [detection]");
+    detection->allow_only({"alert_distance", "pair_list_margin"}, "in [detection]");
     scene_.run.step.detection.alert_distance = detection->number_or("alert_distance", 0.0, non_negative());
+    if (is_auto(*detection, "pair_list_margin")) {
+      scene_.run.step.detection.pair_list_margin = -1.0;
+    } else {
+      scene_.run.step.detection.pair_list_margin =
+          detection->number_or("pair_list_margin", scene_.run.step.detection.pair_list_margin, non_negative());
+    }
   }
 
   void parse_gravity() {
@@ -1429,7 +1435,11 @@ std::string scene_to_toml(const Scene& scene) {
   out << "polish_max_contacts = " << solver.polish_max_contacts << "\n\n";
 
   out << "[detection]\n";
-  out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n\n";
+  out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n";
+  out << "pair_list_margin = "
+      << (run.step.detection.pair_list_margin < 0.0 ? std::string("\"auto\"")
+                                                     : format_number(run.step.detection.pair_list_margin))
+      << "\n\n";
 
   const GravitySettings& gravity = run.step.gravity;
   out << "[gravity]\n";

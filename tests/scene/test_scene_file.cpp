@@ -35,6 +35,7 @@ polish_iterations = 7
 polish_max_contacts = 500
 [detection]
 alert_distance = 0.001
+pair_list_margin = 0.002
 [gravity]
 type = "uniform"
 acceleration = [0, 0, -9.81]
@@ -98,6 +99,7 @@ TEST(ParseScene, GoodSceneGivesItsModelStateAndOptions) {
   EXPECT_EQ(scene.run.step.solver.polish_iterations, 7);
   EXPECT_EQ(scene.run.step.solver.polish_max_contacts, 500u);
   EXPECT_EQ(scene.run.step.detection.alert_distance, 0.001);
+  EXPECT_EQ(scene.run.step.detection.pair_list_margin, 0.002);
   EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::uniform);
   EXPECT_EQ(scene.run.step.gravity.acceleration, Vec3(0, 0, -9.81));
   EXPECT_EQ(scene.run.output.directory, "out");
