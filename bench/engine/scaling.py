@@ -41,6 +41,7 @@ DT = 5e-4        # s, settling
 SETTLE = 400     # settling steps
 DT_TIMED = 1e-4  # s, warm-up and timed steps
 WARMUP = 20
+PLURAL = {"sphere": "spheres", "polyhedron": "polyhedra"}
 CELL = 0.124
 LAYERS = 8
 # (shape, N, timed steps K): fewer timed steps for the large N (the CPU budget of the sweep).
@@ -115,8 +116,9 @@ def listed_scene(scene, run_h5, out):
     import h5py
     text = open(scene).read()
     header = text[:text.index("[[generators]]")]
-    header = re.sub(r"\[time\][^\[]*", f"[time]\ndt = {DT_TIMED!r}\ntheta = 0.5\nend_time = {WARMUP * DT_TIMED!r}\n",
-                    header, count=1)
+    header = re.sub(r"\[time\].*?(?=\n\[solver\])",
+                    f"[time]\ndt = {DT_TIMED!r}\ntheta = 0.5\nend_time = {WARMUP * DT_TIMED!r}\n", header, count=1,
+                    flags=re.S)
     header = header.replace("max_iterations = 39", "max_iterations = 1000")
     v3 = lambda a: "[" + ", ".join(repr(float(x)) for x in a) + "]"
     with h5py.File(run_h5, "r") as f:
@@ -217,7 +219,7 @@ def plot(rows, png):
         n = np.array([r["n"] for r in pts], float)
         t = np.array([r["cpu_ms"] for r in pts], float)
         slope, intercept = fit(rows, shape)
-        ax.loglog(n, t, marker, color=colour, label=f"{shape}s (CPU ms per step)")
+        ax.loglog(n, t, marker, color=colour, label=f"{PLURAL[shape]} (CPU ms per step)")
         nn = np.geomspace(n.min(), n.max(), 50)
         ax.loglog(nn, np.exp(intercept) * nn ** slope, "-", color=colour, lw=1,
                   label=f"fit: t ∝ N^{slope:.2f}")
@@ -276,7 +278,7 @@ def main():
           "contacts per grain | NLGS sweeps/step | max residual | largest stages (wall share) | peak RSS MB |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['shape']}s | {r['n']} | {r['steps']} | {r['cpu_ms']:.2f} | {1e3 * r['cpu_ms'] / r['n']:.1f} | "
+        print(f"| {PLURAL[r['shape']]} | {r['n']} | {r['steps']} | {r['cpu_ms']:.2f} | {1e3 * r['cpu_ms'] / r['n']:.1f} | "
               f"{r['contacts']:.0f} | {r['contacts'] / r['n']:.2f} | {r['sweeps']:.1f} | {r['residual_max']:.1e} | "
               f"{r['top_stages']} | {r['peak_rss_kb'] / 1024:.0f} |")
     for shape in ("sphere", "polyhedron"):
@@ -287,7 +289,7 @@ def main():
         big = max(pts, key=lambda r: r["n"])
         base = int(big.get("baseline_rss_kb", 0) or 0)
         per = (big["peak_rss_kb"] - base) * 1024 / big["n"] if base else float("nan")
-        print(f"{shape}s: fitted exponent {slope:.2f} (N = {pts[0]['n']} ... {big['n']}); peak RSS at N = {big['n']}: "
+        print(f"{PLURAL[shape]}: fitted exponent {slope:.2f} (N = {pts[0]['n']} ... {big['n']}); peak RSS at N = {big['n']}: "
               f"{big['peak_rss_kb']} kB, baseline {base} kB -> {per / 1e3:.2f} kB per grain")
     plot(rows, os.path.join(ROOT, "docs", "scaling.png"))
     print(f"plot: {os.path.join(ROOT, 'docs', 'scaling.png')}; table: {csv_path}")
