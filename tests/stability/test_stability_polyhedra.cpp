@@ -1,0 +1,435 @@
+// Stability suite, polyhedron scenes (cubes and random CGAL polyhedra). Each test states its pass
+// criterion, the NLGS settings it needs and the reference; where a method is known to fail (no
+// Newton polish, a cap on the sweeps), the failure is asserted, not skipped.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <vector>
+
+#include "core/polyhedron.hpp"
+#include "preprocessing/random_polyhedron.hpp"
+#include "support/test_scene.hpp"
+
+namespace rubble {
+namespace {
+
+using testing::TestScene;
+constexpr double g = 9.81;
+
+/// Adds a cube of edge `side` (material `material`) at `position`; returns its body id.
+int add_cube(TestScene& s, double side, const Vec3& position, const Quat& orientation = Quat::Identity(),
+             int material = 0) {
+  const int id = add_polyhedron_grain(s.model, make_box_polyhedron(Vec3::Constant(side / 2)), material);
+  s.place(id, position, orientation, Vec3::Zero());
+  return id;
+}
+
+/// Position of body `id`.
+const Vec3& position(const TestScene& s, int id) { return s.state.position[static_cast<std::size_t>(id)]; }
+
+/// Largest distance of any of `bodies` from its position in `start`.
+double largest_displacement(const TestScene& s, const std::vector<int>& bodies, const std::vector<Vec3>& start) {
+  double d = 0.0;
+  for (std::size_t k = 0; k < bodies.size(); ++k) d = std::max(d, (position(s, bodies[k]) - start[k]).norm());
+  return d;
+}
+
+/// Positions of `bodies` now.
+std::vector<Vec3> positions(const TestScene& s, const std::vector<int>& bodies) {
+  std::vector<Vec3> p;
+  for (const int b : bodies) p.push_back(position(s, b));
+  return p;
+}
+
+/// Largest linear speed of any grain.
+double max_grain_speed(const TestScene& s) {
+  double v = 0.0;
+  for (std::size_t b = 0; b < s.model.body_count(); ++b)
+    if (!s.model.is_fixed(b)) v = std::max(v, s.state.velocity[b].norm());
+  return v;
+}
+
+/// Deepest overlap (-gap, >= 0) among this step's contacts, walls included.
+double deepest_overlap(const TestScene& s) {
+  double d = 0.0;
+  for (const Contact& c : s.workspace.contacts) d = std::max(d, -c.gap);
+  return d;
+}
+
+/// Sum of this step's normal impulses on body `wall` (N s).
+double normal_impulse_on(const TestScene& s, int wall) {
+  double r = 0.0;
+  for (const Contact& c : s.workspace.contacts)
+    if (c.id.body_a == static_cast<std::uint32_t>(wall) || c.id.body_b == static_cast<std::uint32_t>(wall)) r += c.impulse.x();
+  return r;
+}
+
+/// Sweep statistics over a run.
+struct Sweeps {
+  int worst = 0;
+  long total = 0;
+  long steps = 0;
+  void add(const StepReport& r) {
+    worst = std::max(worst, r.solver.iterations);
+    total += r.solver.iterations;
+    ++steps;
+  }
+  double mean() const { return steps ? static_cast<double>(total) / static_cast<double>(steps) : 0.0; }
+};
+
+/// A vertical stack of cubes on a floor (no side walls: the stack stands by itself).
+struct Stack {
+  TestScene scene{2500.0, 0.5, 0.0};  ///< mu = 0.5, e = 0
+  std::vector<int> cubes;             ///< bottom to top
+  std::vector<Vec3> start;            ///< initial positions of `cubes`
+  double side = 0.05;                 ///< m
+  int floor = 0;                      ///< body id of the floor
+};
+
+/// `count` cubes of edge `side` touching face to face on a floor through `origin`;
+/// h = 1 ms, tolerance 1e-6, at most 1000 sweeps.
+Stack stack(int count, const Vec3& origin, double side = 0.05) {
+  Stack st;
+  st.side = side;
+  TestScene& s = st.scene;
+  s.uniform_gravity(g);
+  s.options.integrator.time_step = 1e-3;
+  s.options.solver.tolerance = 1e-6;
+  s.options.solver.max_iterations = 1000;
+  st.floor = s.plane(origin, Vec3::UnitZ());
+  for (int k = 0; k < count; ++k) st.cubes.push_back(add_cube(s, side, origin + Vec3(0, 0, side * (k + 0.5))));
+  st.start = positions(s, st.cubes);
+  return st;
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. A stack of 20 cubes (5 cm), mu = 0.5, h = 1 ms, tolerance 1e-6, at most 1000 sweeps.
+// Pass: after N = 10^4 steps (10 s) the top cube has moved by less than 1e-6 of the side.
+// Reference: a stack at rest stays at rest. Needs the Newton polish (SolverOptions::polish_after,
+// default 40 sweeps): each face carries four coplanar points whose impulses are not unique and
+// plain sweeps crawl (nlgs_solver/README.md).
+TEST(StabilityPolyhedra, TwentyCubeStackStaysPut) {
+  Stack st = stack(20, Vec3::Zero());
+  Sweeps sweeps;
+  for (long k = 0; k < 10000; ++k) {
+    const StepReport& report = st.scene.advance();
+    ASSERT_EQ(report.contacts, 80u) << "step " << k;  // 4 points per face, every step
+    sweeps.add(report);
+  }
+  const double top = (position(st.scene, st.cubes.back()) - st.start.back()).norm();
+  std::cout << "20-cube stack: top drift / side " << top / st.side << ", sweeps per step max " << sweeps.worst
+            << ", mean " << sweeps.mean() << "\n";
+  EXPECT_LT(top, 1e-6 * st.side);
+}
+
+// Expected failure mode: the same stack without the polish (polish_after = 0) and a cap of 200
+// sweeps never meets the tolerance, and the error each step leaves behind makes the stack creep:
+// measured 9.5e-3 of the side in 1000 steps; asserted > 1e-4 of the side.
+TEST(StabilityPolyhedra, TwentyCubeStackWithoutPolishCreeps) {
+  Stack st = stack(20, Vec3::Zero());
+  st.scene.options.solver.polish_after = 0;
+  st.scene.options.solver.max_iterations = 200;
+  st.scene.steps(1000);
+  const double top = (position(st.scene, st.cubes.back()) - st.start.back()).norm();
+  std::cout << "20-cube stack, no polish, 200 sweeps: top drift / side " << top / st.side << "\n";
+  EXPECT_FALSE(st.scene.last_report.solver.converged);
+  EXPECT_GT(top, 1e-4 * st.side);  // asserted failure
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. A wall pyramid in running bond: 10 rows of 5 cm cubes, row k has 10 - k cubes, each centred
+// over the joint of the two below, on a floor; mu = 0.5, h = 1 ms, tolerance 1e-6.
+// Pass: after 1000 steps every cube has moved by less than 1e-5 of the side (at rest stays at rest).
+// The cubes of a row are 0.1 side apart (more than the alert distance), so only the bed joints
+// carry contacts: 8 points per upper cube, 400 in all. With touching cubes (180 more points on
+// the vertical faces) the polish factorises a 1740-unknown system (~0.35 s a Newton step) and,
+// from about step 250, fails to reach 1e-6 in its attempts, so steps cost 10-30 s: not usable in
+// a test (reported in tests/stability/README.md).
+TEST(StabilityPolyhedra, RunningBondPyramidStaysPut) {
+  TestScene s(2500.0, 0.5, 0.0);
+  s.uniform_gravity(g);
+  s.options.integrator.time_step = 1e-3;
+  s.options.solver.tolerance = 1e-6;
+  s.options.solver.max_iterations = 1000;
+  const double side = 0.05;
+  const double pitch = 1.1 * side;
+  s.plane(Vec3::Zero(), Vec3::UnitZ());
+  std::vector<int> cubes;
+  for (int row = 0; row < 10; ++row)
+    for (int i = 0; i < 10 - row; ++i)
+      cubes.push_back(add_cube(s, side, Vec3(pitch * (i + 0.5 * row), 0, side * (row + 0.5))));
+  const std::vector<Vec3> start = positions(s, cubes);
+  Sweeps sweeps;
+  for (long k = 0; k < 1000; ++k) {
+    const StepReport& report = s.advance();
+    ASSERT_EQ(report.contacts, 400u) << "step " << k;
+    sweeps.add(report);
+  }
+  const double moved = largest_displacement(s, cubes, start);
+  std::cout << "pyramid: max displacement / side " << moved / side << ", sweeps per step max " << sweeps.worst
+            << ", mean " << sweeps.mean() << "\n";
+  EXPECT_LT(moved, 1e-5 * side);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. A cube 100x and 1000x denser (a second material: mass and principal inertia both scale with
+// the density) on a stack of 5 light cubes; h = 1 ms, tolerance 1e-8, at most 5000 sweeps.
+// Pass: over 2000 steps no cube moves by more than 1e-6 of the side, and from step 10 on the
+// floor's normal impulse per step equals the total weight times h to 1e-6 relative (momentum
+// balance of the whole stack at rest: sum of impulses = M g h).
+TEST(StabilityPolyhedra, HeavyCubeOnLightOnes) {
+  for (const double ratio : {100.0, 1000.0}) {
+    Stack st = stack(5, Vec3::Zero());
+    TestScene& s = st.scene;
+    s.model.materials.push_back(Material{"heavy", 2500.0 * ratio});
+    s.model.contact_laws.reset(2, ContactLaw{0.5, 0.0});
+    const int heavy = add_cube(s, st.side, Vec3(0, 0, st.side * 5.5), Quat::Identity(), 1);
+    const auto light = static_cast<std::size_t>(st.cubes[0]);
+    ASSERT_NEAR(s.model.mass[static_cast<std::size_t>(heavy)], ratio * s.model.mass[light], 1e-12 * ratio);
+    ASSERT_LT((s.model.principal_inertia[static_cast<std::size_t>(heavy)] - ratio * s.model.principal_inertia[light]).norm(),
+              1e-12 * ratio * s.model.principal_inertia[light].norm());
+    st.cubes.push_back(heavy);
+    st.start.push_back(position(s, heavy));
+    s.options.solver.tolerance = 1e-8;
+    s.options.solver.max_iterations = 5000;
+    double weight = 0.0;
+    for (std::size_t b = 0; b < s.model.body_count(); ++b) weight += s.model.mass[b] * g;
+    const double h = s.options.integrator.time_step;
+    Sweeps sweeps;
+    double worst_balance = 0.0;
+    for (long k = 0; k < 2000; ++k) {
+      sweeps.add(s.advance());
+      if (k >= 10) worst_balance = std::max(worst_balance, std::abs(normal_impulse_on(s, st.floor) / (weight * h) - 1.0));
+    }
+    const double moved = largest_displacement(s, st.cubes, st.start);
+    std::cout << "mass ratio " << ratio << ": drift / side " << moved / st.side << ", |floor impulse / (W h) - 1| max "
+              << worst_balance << ", sweeps per step max " << sweeps.worst << ", mean " << sweeps.mean() << "\n";
+    EXPECT_LT(moved, 1e-6 * st.side) << "mass ratio " << ratio;
+    EXPECT_LT(worst_balance, 1e-6) << "mass ratio " << ratio;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. Overlap recovery: 5 cubes (5 cm) stacked with 25% overlaps (floor-cube and cube-cube),
+// h = 1 ms, tolerance 1e-6. The correction asks each overlapping contact for a separation velocity
+// min(beta (-g) / h, v_max) = min(0.2 x 12.5 mm / 1 ms, v_max) = v_max (nlgs_solver/README.md);
+// the cap is per contact, so along a column the speeds add: cube k leaves at k v_max, and the
+// fastest grain of an n-high column is bounded by n v_max (+ g h). After separating, the cubes fly
+// ballistically (the top one up to (n v_max)^2 / 2g) and land with the predicted-gap activation.
+// Pass: max speed within [n v_max - g h, n v_max + g h]; after 3 s every speed < 1e-6 m/s and
+// every overlap < 1e-3 side. Run with the default cap (1 m/s: measured 5 m/s, at rest by 1.1 s)
+// and a gentle one (0.1 m/s).
+TEST(StabilityPolyhedra, OverlappingStackSeparatesWithoutEjection) {
+  for (const double cap : {1.0, 0.1}) {
+    Stack st = stack(0, Vec3::Zero());
+    TestScene& s = st.scene;
+    s.options.solver.max_correction_velocity = cap;
+    const double side = st.side;
+    const double overlap = 0.25 * side;
+    const int n = 5;
+    for (int k = 0; k < n; ++k) st.cubes.push_back(add_cube(s, side, Vec3(0, 0, side / 2 - overlap + k * (side - overlap))));
+    double max_speed = 0.0;
+    for (int k = 0; k < 3000; ++k) {
+      s.advance();
+      max_speed = std::max(max_speed, max_grain_speed(s));
+    }
+    const double h = s.options.integrator.time_step;
+    std::cout << "overlap recovery, cap " << cap << " m/s: max speed " << max_speed << " m/s, final deepest overlap / side "
+              << deepest_overlap(s) / side << ", final max speed " << max_grain_speed(s) << " m/s\n";
+    EXPECT_LT(max_speed, n * cap + g * h) << "cap " << cap;
+    EXPECT_GT(max_speed, n * cap - g * h) << "cap " << cap;
+    EXPECT_LT(max_grain_speed(s), 1e-6) << "cap " << cap;
+    EXPECT_LT(deepest_overlap(s), 1e-3 * side) << "cap " << cap;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. The friction threshold. A 5 cm cube on a plane inclined by alpha, h = 1 ms, tolerance 1e-8.
+/// A column of `count` cubes (5 cm) on a plane through the origin tilted by `alpha` about x.
+struct Incline {
+  TestScene scene;
+  std::vector<int> cubes;
+  std::vector<Vec3> start;
+  Vec3 downhill;
+};
+Incline incline(double alpha, double mu, int count) {
+  Incline in{TestScene(2500.0, mu, 0.0), {}, {}, Vec3::Zero()};
+  TestScene& s = in.scene;
+  s.uniform_gravity(g);
+  s.options.integrator.time_step = 1e-3;
+  s.options.solver.tolerance = 1e-8;
+  s.options.solver.max_iterations = 1000;
+  const Quat tilt(Eigen::AngleAxisd(alpha, Vec3::UnitX()));
+  const Vec3 normal = tilt * Vec3::UnitZ();
+  s.plane(Vec3::Zero(), normal);
+  const double side = 0.05;
+  for (int k = 0; k < count; ++k) in.cubes.push_back(add_cube(s, side, (k + 0.5) * side * normal, tilt));
+  in.start = positions(s, in.cubes);
+  in.downhill = -(tilt * Vec3::UnitY());
+  return in;
+}
+
+// Reference: Coulomb: the block sticks when tan(alpha) < mu, else slides with
+// a = g (sin alpha - mu cos alpha). Pass: at tan(alpha) = 0.97 mu (mu = 0.5) the displacement
+// after 0.5 s is < 1e-8 m; at 1.03 mu the acceleration (v(0.5 s) / 0.5 s, from rest) is within 1%
+// of the reference, which is only 1.5% of g there, so the friction impulse must be right to 3e-4.
+TEST(StabilityPolyhedra, CubeRightAtTheFrictionThreshold) {
+  const double mu = 0.5;
+  Incline below = incline(std::atan(0.97 * mu), mu, 1);
+  below.scene.run(0.5);
+  const double moved = largest_displacement(below.scene, below.cubes, below.start);
+  EXPECT_LT(moved, 1e-8);
+  const double alpha = std::atan(1.03 * mu);
+  Incline above = incline(alpha, mu, 1);
+  above.scene.run(0.5);
+  const double expected = g * (std::sin(alpha) - mu * std::cos(alpha));
+  const double a = above.scene.state.velocity[static_cast<std::size_t>(above.cubes[0])].dot(above.downhill) / 0.5;
+  std::cout << "incline: 0.97 mu displacement " << moved << " m, 1.03 mu a / reference - 1 = " << a / expected - 1 << "\n";
+  EXPECT_NEAR(a, expected, 0.01 * expected);
+}
+
+// A column of 3 cubes below the threshold. Statics: besides sliding, a column of height 3 s on a
+// base s tips over when tan(alpha) > 1/3 (the centre of mass leaves the base). Pass: with
+// mu = 0.3 (tan(alpha) = 0.97 mu = 0.291 < 1/3) the column stays put (< 1e-8 m after 0.5 s).
+// Asserted contrast: with mu = 0.5, tan(alpha) = 0.485 > 1/3 and the column topples (measured
+// 0.31 m in 0.5 s; asserted > 1 side) although no contact slides.
+TEST(StabilityPolyhedra, ColumnOfThreeCubesOnAnInclineBelowTheThreshold) {
+  Incline stays = incline(std::atan(0.97 * 0.3), 0.3, 3);
+  stays.scene.run(0.5);
+  const double moved = largest_displacement(stays.scene, stays.cubes, stays.start);
+  Incline topples = incline(std::atan(0.97 * 0.5), 0.5, 3);
+  topples.scene.run(0.5);
+  const double toppled = largest_displacement(topples.scene, topples.cubes, topples.start);
+  std::cout << "3-cube column: mu 0.3 displacement " << moved << " m; mu 0.5 (tips) " << toppled << " m\n";
+  EXPECT_LT(moved, 1e-8);
+  EXPECT_GT(toppled, 0.05);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 6. Far from the origin: the 10-cube tower (5 cm, mu = 0.5, h = 1 ms, tolerance 1e-6) with its
+// floor at (1e5, -1e5, 0) m and at the origin, 5000 steps each. Pass: top drift < 1e-6 side in
+// both, and the final positions relative to the floor agree within 5e-9 m. Reference: the
+// physics is translation invariant; what differs is round-off: the spacing of doubles at 1e5 m is
+// 1.5e-11 m, and over 5000 steps the measured difference is 1.4e-9 m (2.8e-8 side).
+TEST(StabilityPolyhedra, TowerFarFromTheOriginBehavesAsAtTheOrigin) {
+  const Vec3 far(1e5, -1e5, 0);
+  Stack near_stack = stack(10, Vec3::Zero());
+  Stack far_stack = stack(10, far);
+  near_stack.scene.steps(5000);
+  far_stack.scene.steps(5000);
+  double difference = 0.0;
+  for (std::size_t k = 0; k < 10; ++k) {
+    const Vec3 a = position(near_stack.scene, near_stack.cubes[k]);
+    const Vec3 b = position(far_stack.scene, far_stack.cubes[k]) - far;
+    difference = std::max(difference, (a - b).norm());
+  }
+  const double side = near_stack.side;
+  const double near_top = (position(near_stack.scene, near_stack.cubes.back()) - near_stack.start.back()).norm();
+  const double far_top = (position(far_stack.scene, far_stack.cubes.back()) - far_stack.start.back()).norm();
+  std::cout << "tower: drift / side at the origin " << near_top / side << ", at 1e5 m " << far_top / side
+            << "; largest difference of relative positions " << difference << " m\n";
+  EXPECT_LT(near_top, 1e-6 * side);
+  EXPECT_LT(far_top, 1e-6 * side);
+  EXPECT_LT(difference, 5e-9);
+}
+
+/// Kinetic energy (translation + rotation) of the grains, J.
+double kinetic_energy(const TestScene& s) {
+  double e = 0.0;
+  for (std::size_t b = 0; b < s.model.body_count(); ++b) {
+    if (s.model.is_fixed(b)) continue;
+    const Vec3 w = s.state.orientation[b].toRotationMatrix().transpose() * s.state.angular_velocity[b];
+    e += 0.5 * s.model.mass[b] * s.state.velocity[b].squaredNorm() + 0.5 * w.dot(s.model.principal_inertia[b].cwiseProduct(w));
+  }
+  return e;
+}
+
+/// Deepest grain-grain overlap among this step's contacts (m, >= 0).
+double deepest_grain_overlap(const TestScene& s) {
+  double d = 0.0;
+  for (const Contact& c : s.workspace.contacts)
+    if (s.model.is_grain(c.id.body_a) && s.model.is_grain(c.id.body_b)) d = std::max(d, -c.gap);
+  return d;
+}
+
+// ---------------------------------------------------------------------------------------------
+// 7. A pile of 300 random CGAL polyhedra (10-20 vertices, d = 0.1 m) poured into a box of plane
+// walls (0.92 m square), mu = 0.5, e = 0, alert distance 0.1 d, tolerance 1e-5, at most 300 sweeps
+// (as the 200-grain pour of tests/polyhedra). The pour runs at h = 2.5e-4 s (needed for < 1% d
+// overlap during the impacts) until the kinetic energy is below 1e-6 of its peak (after t = 1 s;
+// about 1.0-1.3 s); the pile then rests for 10^4 steps at h = 1 ms (fine at rest, and 4x cheaper:
+// 2.5 min of CPU in all, 4 500 contact points, 7-9 sweeps a step).
+// Pass: the deepest grain-grain overlap during the rest phase is < 1% d (measured 5e-4 to 1e-3 d),
+// and no grain is ever kicked faster than the largest separation velocity the penetration
+// correction may ask of a contact, SolverOptions::max_correction_velocity = 1 m/s (no ejection).
+// KNOWN FAILURE (asserted, so that a fix shows up here): the target "no jitter", max grain speed
+// < 1e-3 m/s, is not met. Single grains, mostly in the bottom layer (z < d), are kicked to
+// 0.01-0.27 m/s every few hundred steps and move by 0.1-8 mm, and the kinetic energy stays at
+// 1e-5 J instead of decaying (three runs, maxima 0.06, 0.15, 0.27 m/s, while the tree changed:
+// Verlet pair list, polish capped at 2 000 contacts); see tests/stability/README.md.
+TEST(StabilityPolyhedra, PileOfThreeHundredPolyhedraAtRest) {
+  TestScene s(2500.0, 0.5, 0.0);
+  s.uniform_gravity(g);
+  const double d = 0.1;
+  s.options.integrator.time_step = 2.5e-4;
+  s.options.detection.alert_distance = 0.1 * d;
+  s.options.solver.tolerance = 1e-5;
+  s.options.solver.max_iterations = 300;
+  const double half_width = 0.46;
+  s.plane(Vec3::Zero(), Vec3::UnitZ());
+  s.plane(Vec3(-half_width, 0, 0), Vec3::UnitX());
+  s.plane(Vec3(half_width, 0, 0), -Vec3::UnitX());
+  s.plane(Vec3(0, -half_width, 0), Vec3::UnitY());
+  s.plane(Vec3(0, half_width, 0), -Vec3::UnitY());
+  RandomPolyhedronOptions shape;
+  shape.diameter = d;
+  shape.min_vertices = 10;
+  shape.max_vertices = 20;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal;
+  const double pitch = 1.25 * d;
+  for (int count = 0; count < 300; ++count) {
+    const int layer = count / 49, i = count % 49 / 7, j = count % 7;
+    ConvexPolyhedron p = generate_random_polyhedron(shape, static_cast<std::uint64_t>(1000 + count));
+    const double r = p.bounding_radius;
+    const int id = add_polyhedron_grain(s.model, std::move(p), 0);
+    const Quat q = Quat(normal(rng), normal(rng), normal(rng), normal(rng)).normalized();
+    s.place(id, Vec3((i - 3.0) * pitch, (j - 3.0) * pitch, r + 0.01 + layer * pitch), q,
+            0.1 * Vec3(normal(rng), normal(rng), 0.0));
+  }
+  double peak = 0.0, energy = 0.0, pour_overlap = 0.0;
+  Sweeps pour_sweeps;
+  while (s.state.time < 6.0) {
+    pour_sweeps.add(s.advance());
+    pour_overlap = std::max(pour_overlap, deepest_grain_overlap(s));
+    energy = kinetic_energy(s);
+    peak = std::max(peak, energy);
+    if (s.state.time > 1.0 && energy < 1e-6 * peak) break;
+  }
+  std::cout << "pile: poured for " << s.state.time << " s, KE/peak " << energy / peak << ", deepest " << pour_overlap / d
+            << " d, sweeps max " << pour_sweeps.worst << " mean " << pour_sweeps.mean() << "\n";
+  s.options.integrator.time_step = 1e-3;
+  std::vector<int> grains;
+  for (std::size_t b = 0; b < s.model.body_count(); ++b)
+    if (!s.model.is_fixed(b)) grains.push_back(static_cast<int>(b));
+  const std::vector<Vec3> rest_start = positions(s, grains);
+  double max_speed = 0.0, rest_overlap = 0.0;
+  Sweeps rest_sweeps;
+  for (int k = 0; k < 10000; ++k) {
+    rest_sweeps.add(s.advance());
+    max_speed = std::max(max_speed, max_grain_speed(s));
+    rest_overlap = std::max(rest_overlap, deepest_grain_overlap(s));
+  }
+  std::cout << "pile at rest: max speed " << max_speed << " m/s, deepest overlap " << rest_overlap / d
+            << " d, largest displacement " << largest_displacement(s, grains, rest_start) << " m, final KE "
+            << kinetic_energy(s) << " J, sweeps per step max " << rest_sweeps.worst << ", mean " << rest_sweeps.mean() << "\n";
+  EXPECT_LT(rest_overlap, 0.01 * d);
+  EXPECT_LT(max_speed, s.options.solver.max_correction_velocity);
+  EXPECT_GT(max_speed, 1e-3);  // known failure: the jitter target is not met (see above)
+}
+
+}  // namespace
+}  // namespace rubble
