@@ -337,7 +337,8 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
         stats.converged = true;
         break;
       }
-      if (options.polish_after > 0 && stats.iterations == next_polish && contacts.size() <= options.polish_max_contacts) {
+      if (options.polish_after > 0 && stats.iterations == next_polish && contacts.size() <= options.polish_max_contacts &&
+          stats.polish_attempts < options.polish_attempts_per_step) {
         ++stats.polish_attempts;
         bool polished = false;
         stats.newton_iterations += polish_contacts(model, problem, options, polished);

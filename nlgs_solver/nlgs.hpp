@@ -30,8 +30,12 @@ struct SolverOptions {
   /// over from step to step; the polish ends that. 0 disables it.
   int polish_after = 40;
   int polish_iterations = 20;        ///< Newton (Levenberg-Marquardt) steps per attempt at most
-  /// Larger problems are not polished (the sparse factorisation grows faster than the sweeps).
-  std::size_t polish_max_contacts = 20000;
+  /// Larger problems are not polished: the sparse factorisation of a compact 3D aggregate fills
+  /// in like a 3D mesh (measured: 13-78 s a polish at 5 800 polyhedron contact points, against
+  /// 0.07 s for 40 sweeps), so the polish is for stacks and small piles.
+  std::size_t polish_max_contacts = 2000;
+  /// Polishes per step at most (each after twice the sweeps of the previous one).
+  int polish_attempts_per_step = 2;
 };
 
 /// What one solve did, for the step's report.

@@ -549,7 +549,8 @@ class SceneParser {
     const auto solver = root_.optional_table("solver");
     if (!solver) return;
     solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
-                        "max_correction_velocity", "polish_after", "polish_iterations", "polish_max_contacts"},
+                        "max_correction_velocity", "polish_after", "polish_iterations", "polish_max_contacts",
+                        "polish_attempts_per_step"},
                        "in [solver]");
     auto& options = scene_.run.step.solver;
     options.tolerance = solver->number_or("tolerance", options.tolerance, positive());
@@ -566,6 +567,8 @@ class SceneParser {
         static_cast<int>(solver->integer_or("polish_iterations", options.polish_iterations, 1, 10'000));
     options.polish_max_contacts = static_cast<std::size_t>(
         solver->integer_or("polish_max_contacts", static_cast<std::int64_t>(options.polish_max_contacts), 0, 100'000'000));
+    options.polish_attempts_per_step =
+        static_cast<int>(solver->integer_or("polish_attempts_per_step", options.polish_attempts_per_step, 1, 100));
   }
 
   void parse_detection() {
@@ -1432,7 +1435,8 @@ std::string scene_to_toml(const Scene& scene) {
   out << "max_correction_velocity = " << format_number(solver.max_correction_velocity) << "\n";
   out << "polish_after = " << solver.polish_after << "\n";
   out << "polish_iterations = " << solver.polish_iterations << "\n";
-  out << "polish_max_contacts = " << solver.polish_max_contacts << "\n\n";
+  out << "polish_max_contacts = " << solver.polish_max_contacts << "\n";
+  out << "polish_attempts_per_step = " << solver.polish_attempts_per_step << "\n\n";
 
   out << "[detection]\n";
   out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n";
