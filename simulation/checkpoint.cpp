@@ -291,7 +291,18 @@ std::uint64_t state_hash(const State& state) {
 }
 
 std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint) {
+  // One buffer, sized up front: header (magic, version, reserved, payload size), payload, CRC.
+  // The payload size is patched in at the end.
   Writer payload;
+  payload.bytes.reserve(sizeof(magic) + 16 + checkpoint.scene_text.size() + checkpoint.scene_source.size() +
+                        checkpoint.state.body_count() * 8 * 16 + checkpoint.contacts.size() * contact_bytes +
+                        checkpoint.detection_memory.pairs.size() * 32 + checkpoint.held_gravity.size() * 24 + 4096);
+  for (char c : magic) payload.put(c);
+  payload.put(checkpoint_format_version);
+  payload.put(std::uint32_t{0});
+  const std::size_t size_at = payload.bytes.size();
+  payload.put(std::uint64_t{0});
+  const std::size_t payload_start = payload.bytes.size();
   payload.put(checkpoint.scene_text);
   payload.put(checkpoint.scene_source);
   payload.put(checkpoint.end_time);
@@ -320,14 +331,10 @@ std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint) {
   payload.put(static_cast<std::uint64_t>(checkpoint.held_gravity.size()));
   for (const Vec3& a : checkpoint.held_gravity) payload.put(a);
 
-  Writer file;
-  for (char c : magic) file.put(c);
-  file.put(checkpoint_format_version);
-  file.put(std::uint32_t{0});
-  file.put(static_cast<std::uint64_t>(payload.bytes.size()));
-  file.bytes.insert(file.bytes.end(), payload.bytes.begin(), payload.bytes.end());
-  file.put(crc64(file.bytes));
-  return std::move(file.bytes);
+  const auto payload_size = static_cast<std::uint64_t>(payload.bytes.size() - payload_start);
+  std::memcpy(payload.bytes.data() + size_at, &payload_size, sizeof payload_size);
+  payload.put(crc64(payload.bytes));
+  return std::move(payload.bytes);
 }
 
 Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::string& source) {

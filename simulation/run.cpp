@@ -220,9 +220,16 @@ RunSummary run_scene(const Scene& scene, const RunControl& control) {
     file->flush();  // the run file first: the checkpoint then never promises rows that are not on disk
     progress.series_rows = file->series_rows();
     progress.snapshots = file->snapshot_count();
+    // The contact list is the largest part (a few hundred bytes a contact): it is moved into the
+    // checkpoint and back rather than copied, which keeps a run's peak memory near its working set.
     Checkpoint checkpoint{control.scene_text, control.scene_source, run.end_time, run.seed, state,
-                          workspace.contacts,  workspace.detection_memory, progress, RestWatch{},
+                          std::move(workspace.contacts), workspace.detection_memory, progress, RestWatch{},
                           workspace.held_gravity, workspace.held_gravity_step};
+    struct GiveBack {
+      ContactList& from;
+      ContactList& to;
+      ~GiveBack() { to = std::move(from); }
+    } give_back{checkpoint.contacts, workspace.contacts};
     checkpoint.rest.armed = rest.armed;
     checkpoint.rest.below = rest.below_since.has_value();
     checkpoint.rest.below_since = rest.below_since.value_or(0.0);
