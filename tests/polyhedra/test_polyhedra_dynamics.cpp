@@ -7,6 +7,7 @@
 
 #include "core/polyhedron.hpp"
 #include "preprocessing/random_polyhedron.hpp"
+#include "support/polyhedra_pour.hpp"
 #include "support/test_scene.hpp"
 
 namespace rubble {
@@ -156,28 +157,7 @@ PourResult pour(long steps, double time_step) {
   s.options.detection.alert_distance = 0.1 * d;
   s.options.solver.tolerance = 1e-5;
   s.options.solver.max_iterations = 300;
-  const double half_width = 0.46;
-  s.plane(Vec3::Zero(), Vec3::UnitZ());
-  s.plane(Vec3(-half_width, 0, 0), Vec3::UnitX());
-  s.plane(Vec3(half_width, 0, 0), -Vec3::UnitX());
-  s.plane(Vec3(0, -half_width, 0), Vec3::UnitY());
-  s.plane(Vec3(0, half_width, 0), -Vec3::UnitY());
-  RandomPolyhedronOptions shape;
-  shape.diameter = d;
-  shape.min_vertices = 10;
-  shape.max_vertices = 20;
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> normal;
-  const double pitch = 1.25 * d;  // > the largest bounding diameter: no initial overlap
-  for (int count = 0; count < 200; ++count) {
-    const int layer = count / 49, i = count % 49 / 7, j = count % 7;
-    ConvexPolyhedron p = generate_random_polyhedron(shape, static_cast<std::uint64_t>(count));
-    const double r = p.bounding_radius;
-    const int id = add_polyhedron_grain(s.model, std::move(p), 0);
-    const Vec3 position((i - 3.0) * pitch, (j - 3.0) * pitch, r + 0.01 + layer * pitch);
-    const Quat q = Quat(normal(rng), normal(rng), normal(rng), normal(rng)).normalized();
-    s.place(id, position, q, 0.1 * Vec3(normal(rng), normal(rng), 0.0));
-  }
+  testing::add_polyhedra_pour(s, 200, d, 0, 7);
   auto kinetic_energy = [&] {
     double e = 0.0;
     for (std::size_t b = 0; b < s.model.body_count(); ++b) {

@@ -11,6 +11,7 @@
 
 #include "core/polyhedron.hpp"
 #include "preprocessing/random_polyhedron.hpp"
+#include "support/polyhedra_pour.hpp"
 #include "support/test_scene.hpp"
 
 namespace rubble {
@@ -381,28 +382,7 @@ TEST(StabilityPolyhedra, PileOfThreeHundredPolyhedraAtRest) {
   s.options.detection.alert_distance = 0.1 * d;
   s.options.solver.tolerance = 1e-5;
   s.options.solver.max_iterations = 300;
-  const double half_width = 0.46;
-  s.plane(Vec3::Zero(), Vec3::UnitZ());
-  s.plane(Vec3(-half_width, 0, 0), Vec3::UnitX());
-  s.plane(Vec3(half_width, 0, 0), -Vec3::UnitX());
-  s.plane(Vec3(0, -half_width, 0), Vec3::UnitY());
-  s.plane(Vec3(0, half_width, 0), -Vec3::UnitY());
-  RandomPolyhedronOptions shape;
-  shape.diameter = d;
-  shape.min_vertices = 10;
-  shape.max_vertices = 20;
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> normal;
-  const double pitch = 1.25 * d;
-  for (int count = 0; count < 300; ++count) {
-    const int layer = count / 49, i = count % 49 / 7, j = count % 7;
-    ConvexPolyhedron p = generate_random_polyhedron(shape, static_cast<std::uint64_t>(1000 + count));
-    const double r = p.bounding_radius;
-    const int id = add_polyhedron_grain(s.model, std::move(p), 0);
-    const Quat q = Quat(normal(rng), normal(rng), normal(rng), normal(rng)).normalized();
-    s.place(id, Vec3((i - 3.0) * pitch, (j - 3.0) * pitch, r + 0.01 + layer * pitch), q,
-            0.1 * Vec3(normal(rng), normal(rng), 0.0));
-  }
+  testing::add_polyhedra_pour(s, 300, d, 1000, 11);
   double peak = 0.0, energy = 0.0, pour_overlap = 0.0;
   Sweeps pour_sweeps;
   while (s.state.time < 6.0) {
