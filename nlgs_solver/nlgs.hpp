@@ -3,7 +3,9 @@
 // nonlinear Gauss-Seidel (NLGS, seed 001 section 2.1): contact after contact, the 3x3 local
 // problem is solved exactly with the other contacts' impulses frozen, and the two bodies'
 // velocities are updated at once, so no global matrix is assembled.
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "contact_detection/contact.hpp"
 #include "core/integrator.hpp"
@@ -36,6 +38,12 @@ struct SolverOptions {
   std::size_t polish_max_contacts = 2000;
   /// Polishes per step at most (each after twice the sweeps of the previous one).
   int polish_attempts_per_step = 2;
+  /// Spatial blocks of the sweep (nlgs_solver/README.md, "Sweep order and threads"): the moving
+  /// bodies are cut into this many ranges of their Morton (Z-order) sequence, with equal contact
+  /// counts; blocks sharing no body are swept concurrently. It fixes the sweep order, so results
+  /// depend on it but never on the number of threads. 1 = one block (a plain sequential sweep in
+  /// Morton order).
+  int block_count = 16;
 };
 
 /// What one solve did, for the step's report.
@@ -49,6 +57,25 @@ struct SolverStats {
   double prepare_seconds = 0;  ///< wall time of the preparation (Delassus blocks, targets)
   double sweep_seconds = 0;    ///< wall time of the sweeps
 };
+
+/// The fixed order in which every sweep of one step visits the contacts, and which parts of it may
+/// run concurrently. The contacts are split into groups: one per node of a binary tree over the
+/// `block_count` spatial blocks. A leaf's group holds the contacts whose moving bodies all lie in
+/// that block; an inner node's group holds the contacts joining its two subtrees. Groups are listed
+/// phase by phase (phase = node height: leaves first, the root last); the groups of one phase
+/// share no moving body, so they can be swept in any order or concurrently with the same result;
+/// more generally any order that sweeps a node's group after its two children's subtrees gives
+/// the same result. Within a group, contacts are in Morton order of their contact point.
+struct SweepPlan {
+  std::vector<std::size_t> order;         ///< contact indices, group after group
+  std::vector<std::size_t> group_start;   ///< groups + 1 offsets into `order`
+  std::vector<std::size_t> phase_start;   ///< phases + 1 offsets into the groups
+  std::vector<std::size_t> parent_group;  ///< per group, its tree parent's group (the root: groups)
+};
+
+/// The sweep order of `contacts` (see SweepPlan) from the bodies' positions at the start of the
+/// step; deterministic (ties broken by index). `block_count` >= 1.
+SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& contacts, int block_count);
 
 /// Fills each contact's arms, Delassus block, law and normal target velocity from the model, the
 /// state at the start of the step and the free velocities (LMGC90's "prep_nlgs").

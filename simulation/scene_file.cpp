@@ -550,7 +550,7 @@ class SceneParser {
     if (!solver) return;
     solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
                         "max_correction_velocity", "polish_after", "polish_iterations", "polish_max_contacts",
-                        "polish_attempts_per_step"},
+                        "polish_attempts_per_step", "block_count"},
                        "in [solver]");
     auto& options = scene_.run.step.solver;
     options.tolerance = solver->number_or("tolerance", options.tolerance, positive());
@@ -569,6 +569,7 @@ class SceneParser {
         solver->integer_or("polish_max_contacts", static_cast<std::int64_t>(options.polish_max_contacts), 0, 100'000'000));
     options.polish_attempts_per_step =
         static_cast<int>(solver->integer_or("polish_attempts_per_step", options.polish_attempts_per_step, 1, 100));
+    options.block_count = static_cast<int>(solver->integer_or("block_count", options.block_count, 1, 1'000'000));
   }
 
   void parse_detection() {
@@ -1436,7 +1437,8 @@ std::string scene_to_toml(const Scene& scene) {
   out << "polish_after = " << solver.polish_after << "\n";
   out << "polish_iterations = " << solver.polish_iterations << "\n";
   out << "polish_max_contacts = " << solver.polish_max_contacts << "\n";
-  out << "polish_attempts_per_step = " << solver.polish_attempts_per_step << "\n\n";
+  out << "polish_attempts_per_step = " << solver.polish_attempts_per_step << "\n";
+  out << "block_count = " << solver.block_count << "\n\n";
 
   out << "[detection]\n";
   out << "alert_distance = " << format_number(run.step.detection.alert_distance) << "\n";
