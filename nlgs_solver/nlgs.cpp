@@ -64,6 +64,107 @@ struct BodyCoupledProblem {
   }
 };
 
+/// The sweeps' own compact copy of the problem, in the plan's order (point p is contact
+/// plan.order[p]; bodies in Morton order, then the walls): a sweep reads its contacts one after the
+/// other in memory and the velocities of bodies near in space from nearby memory, instead of
+/// hopping through the ContactList (sorted by body id) and the body arrays (numbered as the
+/// generator placed the grains). The arithmetic is BodyCoupledProblem's, operation for operation,
+/// so the iterate is the same to the bit.
+struct CompactProblem {
+  struct Point {
+    Mat3 frame;
+    Mat3 delassus;
+    Vec3 arm_a, arm_b;
+    Vec3 impulse;
+    double friction_coefficient;
+    double normal_velocity_target;
+    std::uint32_t a, b;  // local body indices
+  };
+  struct Body {
+    Vec3 linear, angular;
+    Mat3 inverse_inertia;
+    double inverse_mass;
+  };
+  std::vector<Point> points;
+  std::vector<Body> bodies;
+  std::vector<std::size_t> body_id;  // model index of each local body
+
+  std::size_t size() const { return points.size(); }
+  const Mat3& delassus(std::size_t k) const { return points[k].delassus; }
+  double friction_coefficient(std::size_t k) const { return points[k].friction_coefficient; }
+  Vec3& impulse(std::size_t k) { return points[k].impulse; }
+
+  Vec3 local_velocity(std::size_t k) const {
+    const Point& c = points[k];
+    const Body& a = bodies[c.a];
+    const Body& b = bodies[c.b];
+    const Vec3 relative = b.linear + b.angular.cross(c.arm_b) - a.linear - a.angular.cross(c.arm_a);
+    Vec3 u = c.frame.transpose() * relative;
+    u.x() -= c.normal_velocity_target;
+    return u;
+  }
+
+  void apply_impulse_change(std::size_t k, const Vec3& delta) {
+    const Point& c = points[k];
+    const Vec3 p = c.frame * delta;
+    Body& b = bodies[c.b];
+    Body& a = bodies[c.a];
+    if (b.inverse_mass != 0.0) {  // Model::is_fixed
+      b.linear += b.inverse_mass * p;
+      b.angular += b.inverse_inertia * c.arm_b.cross(p);
+    }
+    if (a.inverse_mass != 0.0) {
+      a.linear -= a.inverse_mass * p;
+      a.angular -= a.inverse_inertia * c.arm_a.cross(p);
+    }
+  }
+};
+
+CompactProblem gather_problem(const Model& model, const SweepPlan& plan, const ContactList& contacts,
+                              const BodyVelocities& velocity, const std::vector<Mat3>& inverse_inertia) {
+  CompactProblem out;
+  constexpr auto none = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> local(model.body_count(), none);
+  auto add_body = [&](std::size_t body) {
+    local[body] = static_cast<std::uint32_t>(out.bodies.size());
+    out.bodies.push_back({velocity.linear[body], velocity.angular[body], inverse_inertia[body], model.inverse_mass[body]});
+    out.body_id.push_back(body);
+  };
+  out.bodies.reserve(plan.body_order.size());
+  for (const std::size_t body : plan.body_order) add_body(body);
+  out.points.reserve(plan.order.size());
+  for (const std::size_t k : plan.order) {
+    const Contact& c = contacts[k];
+    if (local[c.id.body_a] == none) add_body(c.id.body_a);  // walls
+    if (local[c.id.body_b] == none) add_body(c.id.body_b);
+    out.points.push_back({c.frame, c.delassus, c.arm_a, c.arm_b, c.impulse, c.friction_coefficient,
+                          c.normal_velocity_target, local[c.id.body_a], local[c.id.body_b]});
+  }
+  return out;
+}
+
+/// Copies the compact problem's impulses and moving bodies' velocities back.
+void scatter_problem(const Model& model, const SweepPlan& plan, const CompactProblem& compact, ContactList& contacts,
+                     BodyVelocities& velocity) {
+  for (std::size_t p = 0; p < plan.order.size(); ++p) contacts[plan.order[p]].impulse = compact.points[p].impulse;
+  for (std::size_t i = 0; i < compact.bodies.size(); ++i) {
+    const std::size_t body = compact.body_id[i];
+    if (model.is_fixed(body)) continue;
+    velocity.linear[body] = compact.bodies[i].linear;
+    velocity.angular[body] = compact.bodies[i].angular;
+  }
+}
+
+/// After the polish changed the impulses and velocities: refreshes the compact copy's.
+void refresh_problem(const SweepPlan& plan, const ContactList& contacts, const BodyVelocities& velocity,
+                     CompactProblem& compact) {
+  for (std::size_t p = 0; p < plan.order.size(); ++p) compact.points[p].impulse = contacts[plan.order[p]].impulse;
+  for (std::size_t i = 0; i < compact.bodies.size(); ++i) {
+    compact.bodies[i].linear = velocity.linear[compact.body_id[i]];
+    compact.bodies[i].angular = velocity.angular[compact.body_id[i]];
+  }
+}
+
 /// Normal velocity target b of the unilateral condition 0 <= r_n _|_ U_n - b >= 0.
 /// - Open contact (the free motion keeps the gap open at the end of the step): b is the velocity
 ///   that would just close the gap, g + h((1 - theta) U_n^- + theta U_n) = 0, so a contact pushed
@@ -174,14 +275,15 @@ std::size_t common_node(const std::vector<BlockNode>& nodes, std::size_t i, std:
 /// count. The groups' residual sums are added in group order, so neither does the stopping test.
 /// (A barrier per phase instead costs 5 synchronisations per sweep; on a loaded machine each is a
 /// scheduler time slice.)
-double planned_sweep(BodyCoupledProblem& problem, const SweepPlan& plan, double relaxation, bool parallel,
-                     std::vector<double>& group_residual) {
+template <class Problem>
+double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const std::size_t> order, double relaxation,
+                     bool parallel, std::vector<double>& group_residual) {
   const std::size_t groups = plan.group_start.size() - 1;
   group_residual.assign(groups, 0.0);
   auto sweep_group = [&](std::size_t g) {
     const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
     if (first == last) return;
-    const std::span<const std::size_t> part(plan.order.data() + first, last - first);
+    const std::span<const std::size_t> part(order.data() + first, last - first);
     group_residual[g] = nlgs_sweep(problem, part, relaxation).residual_squared;
   };
   if (parallel) {
@@ -394,6 +496,9 @@ SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& 
     total_ends += block_of[body];
   }
   std::sort(sorted.begin(), sorted.end());
+  SweepPlan plan;
+  plan.body_order.reserve(sorted.size());
+  for (const auto& [key, body] : sorted) plan.body_order.push_back(body);
   std::size_t ends_before = 0;
   for (const auto& [key, body] : sorted) {
     const std::size_t ends = block_of[body];
@@ -432,7 +537,6 @@ SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& 
     entries[k] = {group_of_node[node], grid.key(contacts[k].point), k};
   }
   std::sort(entries.begin(), entries.end());
-  SweepPlan plan;
   plan.order.resize(contacts.size());
   plan.group_start.assign(nodes.size() + 1, 0);
   for (std::size_t i = 0; i < entries.size(); ++i) {
@@ -482,10 +586,15 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   const bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items &&
                         plan.group_start.size() > 2 && omp_get_max_threads() > 1;
   std::vector<double> group_residual;
+  // The sweeps work on a compact copy in the plan's order (contact p of the copy = plan.order[p]).
+  CompactProblem compact = gather_problem(model, plan, contacts, velocity, inverse_inertia);
+  std::vector<std::size_t> positions(contacts.size());
+  for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   int next_polish = options.polish_after;
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
-      const double sweep_residual_squared = planned_sweep(problem, plan, options.relaxation, parallel, group_residual);
+      const double sweep_residual_squared =
+          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_residual);
       if (std::sqrt(sweep_residual_squared) * scale <= options.tolerance) {
         stats.converged = true;
         break;
@@ -494,7 +603,9 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
           stats.polish_attempts < options.polish_attempts_per_step) {
         ++stats.polish_attempts;
         bool polished = false;
+        scatter_problem(model, plan, compact, contacts, velocity);
         stats.newton_iterations += polish_contacts(model, problem, options, polished);
+        refresh_problem(plan, contacts, velocity, compact);
         next_polish *= 2;
         if (polished) {
           stats.converged = true;
@@ -503,6 +614,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
       }
     }
     stats.iterations = std::min(stats.iterations, options.max_iterations);
+    scatter_problem(model, plan, compact, contacts, velocity);
   } else {
     stats.converged = true;
   }

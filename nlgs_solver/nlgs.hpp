@@ -71,6 +71,7 @@ struct SweepPlan {
   std::vector<std::size_t> group_start;   ///< groups + 1 offsets into `order`
   std::vector<std::size_t> phase_start;   ///< phases + 1 offsets into the groups
   std::vector<std::size_t> parent_group;  ///< per group, its tree parent's group (the root: groups)
+  std::vector<std::size_t> body_order;    ///< the contacts' moving bodies in Morton order
 };
 
 /// The sweep order of `contacts` (see SweepPlan) from the bodies' positions at the start of the

@@ -128,6 +128,15 @@ TEST(SweepPlan, GroupsOfOnePhaseShareNoMovingBodyAndTheOrderIsAPermutation) {
     // Every contact exactly once.
     ASSERT_EQ(plan.order.size(), contacts.size());
     EXPECT_EQ(std::set<std::size_t>(plan.order.begin(), plan.order.end()).size(), contacts.size());
+    // body_order: each moving body of the contacts exactly once.
+    std::set<std::size_t> moving;
+    for (const Contact& c : contacts) {
+      for (const std::size_t body : {std::size_t{c.id.body_a}, std::size_t{c.id.body_b}}) {
+        if (!s.model.is_fixed(body)) moving.insert(body);
+      }
+    }
+    EXPECT_EQ(plan.body_order.size(), moving.size());
+    EXPECT_EQ(std::set<std::size_t>(plan.body_order.begin(), plan.body_order.end()), moving);
     // A binary tree over the blocks: 2K - 1 groups.
     ASSERT_EQ(plan.group_start.size(), static_cast<std::size_t>(2 * blocks));
     EXPECT_EQ(plan.group_start.back(), contacts.size());
