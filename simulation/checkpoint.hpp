@@ -13,7 +13,9 @@
 // loaded.
 //
 // Files live in DIR/checkpoints/ as step-NNNNNNNNNNNN.ckpt (NNNN = state.step, 12 digits, so that
-// names sort by step). write_checkpoint writes a temporary file, fsyncs it, renames it into place
+// names sort by step). write_checkpoint streams the file from the run's own objects (a
+// CheckpointView: no copy of the state or contacts, a 1 MiB buffer and a running CRC; the payload
+// size in the header comes from a counting pass), writes it as a temporary file, fsyncs it, renames it into place
 // and fsyncs the folder (POSIX: the rename is atomic, so a reader sees the old set of files or the
 // new one, never half a file), then deletes all but the newest `keep` checkpoints.
 #include <cstddef>
@@ -81,6 +83,26 @@ struct Checkpoint {
   std::int64_t held_gravity_step = -1;  ///< state.step at which held_gravity was evaluated (-1: none)
 };
 
+/// A checkpoint's content by reference: what write_checkpoint saves, taken straight from the run
+/// loop's objects so that writing a checkpoint copies neither the State nor the contacts. Field
+/// by field the same as Checkpoint (see there); the referenced objects must outlive the view.
+struct CheckpointView {
+  const std::string& scene_text;               ///< Checkpoint::scene_text
+  const std::string& scene_source;             ///< Checkpoint::scene_source
+  double end_time;                             ///< s, Checkpoint::end_time
+  std::uint64_t seed;                          ///< Checkpoint::seed
+  const State& state;                          ///< Checkpoint::state
+  const ContactList& contacts;                 ///< Checkpoint::contacts
+  const DetectionMemory& detection_memory;     ///< Checkpoint::detection_memory (pairs and normals only)
+  const RunProgress& progress;                 ///< Checkpoint::progress
+  const RestWatch& rest;                       ///< Checkpoint::rest
+  const std::vector<Vec3>& held_gravity;       ///< Checkpoint::held_gravity
+  std::int64_t held_gravity_step;              ///< Checkpoint::held_gravity_step
+};
+
+/// A view of every field of `checkpoint`.
+CheckpointView checkpoint_view(const Checkpoint& checkpoint);
+
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).
 inline constexpr std::uint32_t checkpoint_format_version = 2;  // 2: held gravity field
 
@@ -92,7 +114,11 @@ std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);
 /// bitwise equal (and almost surely only then): what the restart tests compare.
 std::uint64_t state_hash(const State& state);
 
-/// The checkpoint as file bytes (header, payload, CRC).
+/// The checkpoint as file bytes (header, payload, CRC): exactly the bytes write_checkpoint streams
+/// to its file.
+std::vector<std::byte> serialize_checkpoint(const CheckpointView& checkpoint);
+
+/// The same for a Checkpoint.
 std::vector<std::byte> serialize_checkpoint(const Checkpoint& checkpoint);
 
 /// Parses file bytes; `source` names the file in messages. Throws CheckpointError on any mismatch
@@ -106,6 +132,11 @@ std::filesystem::path checkpoint_folder(const std::filesystem::path& output_dire
 /// then deletes older checkpoints so that the newest `keep` (>= 1) remain, and any temporary file
 /// left by an interrupted write. Returns the file's path. Throws std::runtime_error on I/O errors
 /// (the previous checkpoints are then untouched).
+/// The file is streamed (see the file comment): the memory it takes is 1 MiB whatever its size.
+std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const CheckpointView& checkpoint,
+                                       int keep = 2);
+
+/// The same for a Checkpoint.
 std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const Checkpoint& checkpoint, int keep = 2);
 
 /// Reads and checks one checkpoint file. Throws CheckpointError.
