@@ -2,8 +2,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -15,7 +17,8 @@ namespace {
   throw PolyhedronError("convex polyhedron: " + what, face, vertex);
 }
 
-void check_indices(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces) {
+template <typename Faces>
+void check_indices(const std::vector<Vec3>& vertices, const Faces& faces) {
   const int n = static_cast<int>(vertices.size());
   for (std::size_t f = 0; f < faces.size(); ++f) {
     if (faces[f].size() < 3) fail("face " + std::to_string(f) + " has fewer than 3 vertices", static_cast<int>(f));
@@ -30,7 +33,7 @@ void check_indices(const std::vector<Vec3>& vertices, const std::vector<std::vec
 
 /// Newell's normal of a polygon (robust for slightly non-planar polygons), not normalised:
 /// its length is twice the projected area.
-Vec3 newell_normal(const std::vector<Vec3>& vertices, const std::vector<int>& face) {
+Vec3 newell_normal(const std::vector<Vec3>& vertices, std::span<const int> face) {
   Vec3 n = Vec3::Zero();
   for (std::size_t i = 0; i < face.size(); ++i) {
     const Vec3& p = vertices[static_cast<std::size_t>(face[i])];
@@ -52,10 +55,9 @@ Mat3 principal_axes(const Mat3& inertia) {
   return axes;
 }
 
-}  // namespace
-
-PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
-                                                    const std::vector<std::vector<int>>& faces) {
+/// polyhedron_mass_properties for faces stored either way (nested vectors or IndexLists).
+template <typename Faces>
+PolyhedronMassProperties mass_properties(const std::vector<Vec3>& vertices, const Faces& faces) {
   check_indices(vertices, faces);
   PolyhedronMassProperties out;
   if (vertices.empty()) return out;
@@ -87,6 +89,17 @@ PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& ver
   out.centroid = reference + centroid;
   out.inertia_per_density = central.trace() * Mat3::Identity() - central;
   return out;
+}
+
+}  // namespace
+
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
+                                                    const std::vector<std::vector<int>>& faces) {
+  return mass_properties(vertices, faces);
+}
+
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices, const IndexLists& faces) {
+  return mass_properties(vertices, faces);
 }
 
 ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
@@ -171,7 +184,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
 
   ConvexPolyhedron shape;
   shape.vertices = std::move(vertices);
-  shape.faces = std::move(faces);
+  shape.faces = IndexLists(faces);
+  faces = {};  // the nested copy is no longer needed
   shape.edges = std::move(edges);
   shape.edge_faces = std::move(edge_faces);
   shape.volume = mass.volume;
@@ -187,6 +201,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
   const double tolerance = options.convexity_tolerance * 2.0 * shape.bounding_radius;
 
   // --- faces: normals, convexity, supporting planes ---
+  shape.face_normals.reserve(shape.faces.size());
+  shape.face_offsets.reserve(shape.faces.size());
   for (std::size_t f = 0; f < shape.faces.size(); ++f) {
     const auto& face = shape.faces[f];
     const Vec3 area_normal = newell_normal(shape.vertices, face);
@@ -226,12 +242,31 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     shape.face_offsets.push_back(offset);
   }
 
-  shape.vertex_neighbours.assign(shape.vertices.size(), {});
+  // Vertex neighbours in edge order (i gets j, j gets i), filled into the flat lists in two passes.
+  std::vector<std::uint32_t> degree(shape.vertices.size() + 1, 0);
   for (const auto& [i, j] : shape.edges) {
-    shape.vertex_neighbours[static_cast<std::size_t>(i)].push_back(j);
-    shape.vertex_neighbours[static_cast<std::size_t>(j)].push_back(i);
+    ++degree[static_cast<std::size_t>(i) + 1];
+    ++degree[static_cast<std::size_t>(j) + 1];
   }
+  for (std::size_t v = 1; v < degree.size(); ++v) degree[v] += degree[v - 1];
+  shape.vertex_neighbours.offsets = degree;
+  shape.vertex_neighbours.indices.assign(degree.back(), -1);
+  for (const auto& [i, j] : shape.edges) {
+    shape.vertex_neighbours.indices[degree[static_cast<std::size_t>(i)]++] = j;
+    shape.vertex_neighbours.indices[degree[static_cast<std::size_t>(j)]++] = i;
+  }
+  shrink_to_fit(shape);
   return shape;
+}
+
+void shrink_to_fit(ConvexPolyhedron& shape) {
+  shape.vertices.shrink_to_fit();
+  shape.faces.shrink_to_fit();
+  shape.face_normals.shrink_to_fit();
+  shape.edges.shrink_to_fit();
+  shape.face_offsets.shrink_to_fit();
+  shape.edge_faces.shrink_to_fit();
+  shape.vertex_neighbours.shrink_to_fit();
 }
 
 ConvexPolyhedron scaled_polyhedron(const ConvexPolyhedron& shape, double factor) {

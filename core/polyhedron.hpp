@@ -41,6 +41,9 @@ struct PolyhedronMassProperties {
 PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
                                                     const std::vector<std::vector<int>>& faces);
 
+/// The same for faces stored as flat lists (a ConvexPolyhedron's).
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices, const IndexLists& faces);
+
 /// Options of make_convex_polyhedron.
 struct PolyhedronBuildOptions {
   /// Faces may deviate from their plane, and vertices may lie outside a face's plane, by this
@@ -70,6 +73,11 @@ struct PolyhedronPose {
 /// Throws PolyhedronError with a message saying what is wrong.
 ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
                                         const PolyhedronBuildOptions& options = {}, PolyhedronPose* pose = nullptr);
+
+/// Releases the spare capacity of every array of `shape` (make_convex_polyhedron does it; for
+/// shapes assembled by hand). A scene holds one shape per polyhedral grain, so capacity left by
+/// push_back is per-grain memory.
+void shrink_to_fit(ConvexPolyhedron& shape);
 
 /// The same shape scaled by `factor` > 0 about its centroid (volume x f^3, inertia x f^5).
 ConvexPolyhedron scaled_polyhedron(const ConvexPolyhedron& shape, double factor);

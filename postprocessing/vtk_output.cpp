@@ -183,7 +183,7 @@ void VtkSeries::write(const State& state, const ContactList& contacts) {
         const Vec3 world = state.position[i] + rotation * vertex;
         points->InsertNextPoint(world.data());
       }
-      for (const std::vector<int>& face : shape.faces) {
+      for (const std::span<const int> face : shape.faces) {
         std::vector<vtkIdType> ids;
         for (int v : face) ids.push_back(first + v);
         polygons->InsertNextCell(static_cast<vtkIdType>(ids.size()), ids.data());

@@ -43,7 +43,7 @@ inline ConvexPolyhedron tetrahedron(double r) {
   // Each face omits one vertex; reversed where needed so that it is counter-clockwise from outside
   // (its normal points away from the centroid, which is the origin).
   shape.faces = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-  for (auto& face : shape.faces) {
+  for (const std::span<int> face : shape.faces) {
     Vec3 n = (shape.vertices[face[1]] - shape.vertices[face[0]])
                  .cross(shape.vertices[face[2]] - shape.vertices[face[0]])
                  .normalized();
