@@ -1239,9 +1239,12 @@ class SceneParser {
   void build() {
     Model& model = scene_.model;
     State& state = scene_.state;
-    for (const GrainSpec& g : grains_) {
+    for (GrainSpec& g : grains_) {
       if (g.polyhedron) {
         add_polyhedron_grain(model, *g.polyhedron, g.material);
+        // The model holds its own copy: drop the parser's at once, so that the next copy reuses
+        // its memory and a scene never holds every shape twice (bench/RESULTS.md, memory per grain).
+        g.polyhedron.reset();
       } else {
         add_sphere(model, g.radius, g.material);
       }
