@@ -48,6 +48,27 @@ struct ByteCounter {
   std::uint64_t count = 0;  ///< bytes appended
 };
 
+/// Only the CRC-64 of the bytes, through a small buffer (state_hash: no copy of the state).
+struct CrcSink {
+  void append(const std::byte* p, std::size_t n) {
+    while (n > 0) {
+      const std::size_t room = std::min(n, buffer.size() - used);
+      std::memcpy(buffer.data() + used, p, room);
+      used += room;
+      p += room;
+      n -= room;
+      if (used == buffer.size()) flush();
+    }
+  }
+  void flush() {
+    crc = crc64(std::span<const std::byte>(buffer.data(), used), crc);
+    used = 0;
+  }
+  std::array<std::byte, 4096> buffer{};  ///< bytes not yet in crc
+  std::size_t used = 0;                  ///< bytes in buffer
+  std::uint64_t crc = 0;                 ///< CRC-64 of the bytes flushed so far
+};
+
 /// Writes values in native (little-endian) order to a sink with append(const std::byte*, size_t).
 template <typename Sink>
 class Writer {
@@ -392,10 +413,13 @@ std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc) {
 }
 
 std::uint64_t state_hash(const State& state) {
-  ByteBuffer buffer;
-  Writer out(buffer);
-  put_state(out, state);
-  return crc64(buffer.bytes);
+  CrcSink crc;
+  {
+    Writer out(crc);
+    put_state(out, state);
+  }
+  crc.flush();
+  return crc.crc;
 }
 
 CheckpointView checkpoint_view(const Checkpoint& checkpoint) {
