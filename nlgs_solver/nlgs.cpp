@@ -275,9 +275,12 @@ std::size_t common_node(const std::vector<BlockNode>& nodes, std::size_t i, std:
 /// count. The groups' residual sums are added in group order, so neither does the stopping test.
 /// (A barrier per phase instead costs 5 synchronisations per sweep; on a loaded machine each is a
 /// scheduler time slice.)
+/// In parallel, `group_seconds` receives each group's own sweep time (their sum is what the sweep
+/// costs on one thread), so the caller can tell when the threads spend longer waiting for a core
+/// than working.
 template <class Problem>
 double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const std::size_t> order, double relaxation,
-                     bool parallel, std::vector<double>& group_residual) {
+                     bool parallel, std::vector<double>& group_residual, std::vector<double>& group_seconds) {
   const std::size_t groups = plan.group_start.size() - 1;
   group_residual.assign(groups, 0.0);
   auto sweep_group = [&](std::size_t g) {
@@ -287,6 +290,12 @@ double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const st
     group_residual[g] = nlgs_sweep(problem, part, relaxation).residual_squared;
   };
   if (parallel) {
+    group_seconds.assign(groups, 0.0);
+    auto timed_sweep_group = [&](std::size_t g) {
+      const auto begin = Clock::now();
+      sweep_group(g);
+      group_seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
+    };
     std::vector<std::atomic<int>> arrivals(groups);
     for (auto& count : arrivals) count.store(0, std::memory_order_relaxed);
     const auto leaves = static_cast<std::ptrdiff_t>(plan.phase_start[1]);
@@ -295,12 +304,12 @@ double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const st
 #pragma omp for schedule(dynamic, 1) nowait
       for (std::ptrdiff_t leaf = 0; leaf < leaves; ++leaf) {
         std::size_t g = static_cast<std::size_t>(leaf);
-        sweep_group(g);
+        timed_sweep_group(g);
         // Climb while this thread completed the second child of the parent.
         while (plan.parent_group[g] < groups) {
           g = plan.parent_group[g];
           if (arrivals[g].fetch_add(1, std::memory_order_acq_rel) == 0) break;  // the sibling's thread goes on
-          sweep_group(g);
+          timed_sweep_group(g);
         }
       }
     }
@@ -583,9 +592,9 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
   // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
   // costs a futex round trip per sweep).
-  const bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items &&
-                        plan.group_start.size() > 2 && omp_get_max_threads() > 1;
-  std::vector<double> group_residual;
+  bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items &&
+                  plan.group_start.size() > 2 && omp_get_max_threads() > 1;
+  std::vector<double> group_residual, group_seconds;
   // The sweeps work on a compact copy in the plan's order (contact p of the copy = plan.order[p]).
   CompactProblem compact = gather_problem(model, plan, contacts, velocity, inverse_inertia);
   std::vector<std::size_t> positions(contacts.size());
@@ -593,8 +602,17 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   int next_polish = options.polish_after;
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
+      const auto sweep_start = Clock::now();
       const double sweep_residual_squared =
-          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_residual);
+          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_residual, group_seconds);
+      if (parallel) {
+        // When the threaded sweep took longer than its work on one thread, the threads waited for
+        // cores busy with other processes: sweep serially for the rest of the step. Both paths
+        // give the same iterate to the bit, so this timing-based choice cannot change the result.
+        double work = 0.0;
+        for (const double t : group_seconds) work += t;
+        if (std::chrono::duration<double>(Clock::now() - sweep_start).count() > work) parallel = false;
+      }
       if (std::sqrt(sweep_residual_squared) * scale <= options.tolerance) {
         stats.converged = true;
         break;
