@@ -1,6 +1,7 @@
 // Broad phase against brute force, determinism, and the warm-start matching.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -120,6 +121,46 @@ TEST(Detection, PairListGivesTheContactsOfABroadPhaseEveryStep) {
   EXPECT_GT(reused, 150);  // half a margin = 2.5 walks of 0.2 alert at most: rebuilt every few steps
 }
 
+// The narrow phase runs in waves of pairs and the list is re-sorted through an index permutation
+// when pairs interleave; neither may change a bit. Reference: every brute-force pair collided on
+// its own and the whole list stable-sorted by id. Over 4 096 pairs (several waves), and a floor
+// numbered after the grains, so that its contacts (body a = the floor) need the global sort.
+TEST(Detection, WavesAndTheGlobalSortGiveThePairByPairList) {
+  Cloud c = random_cloud(6000, 0.5, 1.0, 30.0, 7);
+  const int floor = add_plane_wall(c.model, Vec3(0, 0, 1), 0);
+  c.state.position.push_back(Vec3(0, 0, 2.0));
+  c.state.orientation.push_back(Quat::Identity());
+  c.state.velocity.push_back(Vec3::Zero());
+  c.state.angular_velocity.push_back(Vec3::Zero());
+  ASSERT_EQ(c.state.body_count(), c.model.body_count());
+  const double alert = 0.05;
+  DetectionMemory memory;
+  DetectionStats stats;
+  const ContactList contacts = detect_contacts(c.model, c.state, DetectionOptions{alert}, memory, &stats);
+  ASSERT_GT(stats.candidate_pairs, 2 * 4096u);
+
+  std::vector<BodyPair> pairs = brute_force_pairs(c, alert);  // sphere pairs (the plane's radius is infinite:
+  pairs.erase(std::remove_if(pairs.begin(), pairs.end(),       // brute force lists it with everything)
+                             [&](const BodyPair& p) { return p.body_b == static_cast<std::uint32_t>(floor); }),
+              pairs.end());
+  for (std::uint32_t b = 0; b < static_cast<std::uint32_t>(floor); ++b) pairs.push_back({b, static_cast<std::uint32_t>(floor)});
+  ContactList reference;
+  Vec3 unused_normal;
+  for (const BodyPair& p : pairs) collide_pair(c.model, c.state, p, alert, DetectionMemory{}, reference, unused_normal);
+  std::stable_sort(reference.begin(), reference.end(), [](const Contact& x, const Contact& y) { return x.id < y.id; });
+
+  std::size_t floor_contacts = 0;
+  for (const Contact& x : reference) floor_contacts += x.id.body_a == static_cast<std::uint32_t>(floor) ? 1 : 0;
+  ASSERT_GT(floor_contacts, 10u);
+  ASSERT_EQ(contacts.size(), reference.size());
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    ASSERT_EQ(contacts[k].id, reference[k].id) << k;
+    ASSERT_EQ(contacts[k].gap, reference[k].gap) << k;
+    ASSERT_EQ(contacts[k].point, reference[k].point) << k;
+    ASSERT_EQ(contacts[k].frame, reference[k].frame) << k;
+  }
+}
+
 TEST(MatchContacts, CarriesTheWorldImpulseIntoTheNewFrame) {
   Contact old_contact;
   old_contact.id = {1, 2, 0, 0};
@@ -134,6 +175,40 @@ TEST(MatchContacts, CarriesTheWorldImpulseIntoTheNewFrame) {
   carry_impulses({old_contact}, current);
   EXPECT_LT((current[0].frame * current[0].impulse - old_contact.frame * old_contact.impulse).norm(), 1e-14);
   EXPECT_EQ(current[1].impulse, Vec3::Zero());
+}
+
+// Warm start from the 40-byte records (last step's list freed before detection) must give the
+// impulses of the full-list expression frame_new^T (frame_old r_old) to the bit.
+TEST(MatchContacts, RecordsCarryTheFullListsImpulsesToTheBit) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  ContactList previous, current;
+  for (std::uint32_t b = 1; b < 400; ++b) {
+    Contact c;
+    c.id = {b / 3, b, b % 2, 0};
+    c.frame = frame_from_normal(Vec3(u(rng), u(rng), u(rng)).normalized());
+    c.impulse = Vec3(u(rng), u(rng), u(rng));
+    if (b % 5 != 0) previous.push_back(c);  // some contacts are new this step
+    c.frame = frame_from_normal(Vec3(u(rng), u(rng), u(rng)).normalized());
+    c.impulse = Vec3::Zero();
+    if (b % 7 != 0) current.push_back(c);  // some have closed
+  }
+  const std::vector<CarriedImpulse> records = impulses_to_carry(previous);
+  ASSERT_EQ(records.size(), previous.size());
+  ContactList carried = current;
+  carry_impulses(records, carried);
+  std::size_t matched = 0;
+  for (std::size_t k = 0; k < current.size(); ++k) {
+    const auto old = std::find_if(previous.begin(), previous.end(), [&](const Contact& p) { return p.id == current[k].id; });
+    const Vec3 expected =
+        old == previous.end() ? Vec3::Zero() : Vec3(current[k].frame.transpose() * (old->frame * old->impulse));
+    EXPECT_EQ(carried[k].impulse, expected) << k;
+    matched += old == previous.end() ? 0 : 1;
+  }
+  EXPECT_GT(matched, 200u);
+  ContactList from_list = current;
+  carry_impulses(previous, from_list);
+  for (std::size_t k = 0; k < current.size(); ++k) EXPECT_EQ(from_list[k].impulse, carried[k].impulse) << k;
 }
 
 }  // namespace
