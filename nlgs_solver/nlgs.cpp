@@ -120,17 +120,25 @@ struct CompactProblem {
   }
 };
 
-CompactProblem gather_problem(const Model& model, const SweepPlan& plan, const ContactList& contacts,
-                              const BodyVelocities& velocity, const std::vector<Mat3>& inverse_inertia) {
+CompactProblem gather_problem(const Model& model, const State& state, const SweepPlan& plan, const ContactList& contacts,
+                              const BodyVelocities& velocity) {
   CompactProblem out;
   constexpr auto none = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> local(model.body_count(), none);
   auto add_body = [&](std::size_t body) {
     local[body] = static_cast<std::uint32_t>(out.bodies.size());
-    out.bodies.push_back({velocity.linear[body], velocity.angular[body], inverse_inertia[body], model.inverse_mass[body]});
+    // The world inverse inertia computed here rather than copied (same function, same value): the
+    // caller's array need not be alive beside the copy.
+    out.bodies.push_back({velocity.linear[body], velocity.angular[body],
+                          world_inverse_inertia(model, body, state.orientation[body]), model.inverse_mass[body]});
     out.body_id.push_back(body);
   };
-  out.bodies.reserve(plan.body_order.size());
+  // The moving bodies plus room for every wall: a push_back past the reserve would double the
+  // array (128 bytes a body) while the sweeps run.
+  std::size_t fixed_bodies = 0;
+  for (std::size_t body = 0; body < model.body_count(); ++body) fixed_bodies += model.is_fixed(body) ? 1 : 0;
+  out.bodies.reserve(plan.body_order.size() + fixed_bodies);
+  out.body_id.reserve(plan.body_order.size() + fixed_bodies);
   for (const std::size_t body : plan.body_order) add_body(body);
   out.points.reserve(plan.order.size());
   for (const std::size_t k : plan.order) {
@@ -572,7 +580,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
                            ContactList& contacts, BodyVelocities& velocity) {
   SolverStats stats;
   const auto start = Clock::now();
-  const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
+  std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
   BodyCoupledProblem problem{model, contacts, velocity, inverse_inertia};
 
   // ||q||: the local velocities with no contact impulse (free velocity minus target).
@@ -586,6 +594,11 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
     r = project_onto_coulomb_cone(r, contacts[k].friction_coefficient);
     if (r != Vec3::Zero()) problem.apply_impulse_change(k, r);
   }
+  // Only a polish reads the world inverse inertias again (the compact copy computes its own):
+  // when none can happen, free them before the copy is made (72 bytes a body).
+  const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
+                          options.polish_attempts_per_step > 0;
+  if (!may_polish) std::vector<Mat3>().swap(inverse_inertia);
   const double q_norm = std::sqrt(free_norm_squared);
   const double scale = q_norm > 0.0 ? 1.0 / q_norm : 1.0;
 
@@ -596,7 +609,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
                   plan.group_start.size() > 2 && omp_get_max_threads() > 1;
   std::vector<double> group_residual, group_seconds;
   // The sweeps work on a compact copy in the plan's order (contact p of the copy = plan.order[p]).
-  CompactProblem compact = gather_problem(model, plan, contacts, velocity, inverse_inertia);
+  CompactProblem compact = gather_problem(model, state, plan, contacts, velocity);
   std::vector<std::size_t> positions(contacts.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   int next_polish = options.polish_after;
