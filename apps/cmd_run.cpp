@@ -172,7 +172,9 @@ int run_command(const RunArguments& args) {
   }
   try {
     const StopOnSignals handlers;
-    const RunSummary summary = run_scene(scene, control);
+    // The run works on the scene's initial state itself, not a copy (one state less in memory).
+    State initial_state = std::move(scene.state);
+    const RunSummary summary = run_scene(scene, std::move(initial_state), control);
     if (summary.interrupted) {
       const int signal_number = stop_signal.load();
       std::cout << "rubble run: stopped by " << signal_name(signal_number) << " at step " << summary.final_step

@@ -82,4 +82,9 @@ struct RunSummary {
 /// finite and positive.
 RunSummary run_scene(const Scene& scene, const RunControl& control);
 
+/// The same, running from `initial_state` instead of a copy of scene.state (which is not read):
+/// a caller that moves the scene's state in keeps one copy of it instead of two during the run
+/// (104 bytes a body).
+RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& control);
+
 }  // namespace rubble

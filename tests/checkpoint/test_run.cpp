@@ -144,6 +144,19 @@ TEST(Restart, FromEveryCheckpointEndsBitIdentical) {
   }
 }
 
+// rubble run hands the scene's initial state to run_scene instead of a copy (one state less in
+// memory): the run must be the one of run_scene(scene), record for record.
+TEST(RunScene, FromTheMovedInitialStateIsTheSameRun) {
+  const RunSummary reference = run_scene(scene_in("copied_state"), control_for());
+  Scene scene = scene_in("moved_state");
+  State initial = std::move(scene.state);
+  scene.state = State{};  // run_scene must not read it
+  const RunSummary moved = run_scene(scene, std::move(initial), control_for());
+  EXPECT_EQ(moved.final_step, reference.final_step);
+  EXPECT_EQ(moved.state_hash, reference.state_hash);
+  expect_same_record(read_record(moved.run_file), read_record(reference.run_file));
+}
+
 TEST(Restart, StopFlagWritesACheckpointAndResumesIdentically) {
   const RunSummary reference = run_scene(scene_in("stop_reference"), control_for());
   const Scene scene = scene_in("stop");
