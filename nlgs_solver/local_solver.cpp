@@ -69,24 +69,30 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
   // Newton on the angle phi of d for the misalignment f(phi) = u_T x d = 0, from the sticking
   // trial's direction. A plain fixed point d <- u_T/||u_T|| diverges near the cone's boundary,
   // where the slip is small; Newton on phi does not, since f' stays of the order of mu r_n W_TT.
-  double phi = std::atan2(d.y(), d.x());
-  auto f = [&](double angle, SlidingCandidate& out) {
-    const Vec2 dir(std::cos(angle), std::sin(angle));
-    if (!sliding_candidate(W, u_free, mu, dir, out)) return std::numeric_limits<double>::quiet_NaN();
-    return misalignment(out, dir);
-  };
+  // The derivative is exact and d is turned without trigonometry (profiled: sin/cos of a
+  // finite-difference derivative were ~15% of a step of the mixed deposit). With d' = (-d_s, d_t)
+  // and D = W_nn - mu W_nT.d (so r_n = -u_free_n / D):
+  //   D' = -mu W_nT.d',  r_n' = -r_n D'/D,  r' = r_n' (1, -mu d) + r_n (0, -mu d'),  u' = W r',
+  //   f' = u'_T x d + u_T x d'.
+  // The step turns d by -atan(delta) (d <- normalise(d - delta d')), which is a Newton step on
+  // phi to second order, so the convergence stays quadratic.
+  const auto cross = [](const Vec2& x, const Vec2& y) { return x.x() * y.y() - x.y() * y.x(); };
   for (int iteration = 0; iteration < 40; ++iteration) {
-    const double value = f(phi, c);
-    if (std::isnan(value)) break;
-    constexpr double step = 1e-7;
-    SlidingCandidate scratch;
-    const double derivative = (f(phi + step, scratch) - f(phi - step, scratch)) / (2.0 * step);
+    if (!sliding_candidate(W, u_free, mu, d, c)) break;
+    const Vec2 turned(-d.y(), d.x());
+    const double compliance = W(0, 0) - mu * (W(0, 1) * d.x() + W(0, 2) * d.y());
+    const double compliance_rate = -mu * (W(0, 1) * turned.x() + W(0, 2) * turned.y());
+    const double r_n = c.impulse.x();
+    const double r_n_rate = -r_n * compliance_rate / compliance;
+    const Vec3 impulse_rate(r_n_rate, -mu * (r_n_rate * d.x() + r_n * turned.x()), -mu * (r_n_rate * d.y() + r_n * turned.y()));
+    const Vec3 velocity_rate = W * impulse_rate;
+    const double value = cross(c.tangential_velocity, d);
+    const double derivative = cross(Vec2(velocity_rate.y(), velocity_rate.z()), d) + cross(c.tangential_velocity, turned);
     if (!std::isfinite(derivative) || derivative == 0.0) break;
     const double correction = std::clamp(value / derivative, -0.5, 0.5);
-    phi -= correction;
+    d = (d - correction * turned).normalized();
     if (std::abs(correction) < 1e-13) {
-      const Vec2 dir(std::cos(phi), std::sin(phi));
-      if (!sliding_candidate(W, u_free, mu, dir, c) || c.tangential_velocity.dot(dir) < 0.0) break;
+      if (!sliding_candidate(W, u_free, mu, d, c) || c.tangential_velocity.dot(d) < 0.0) break;
       solution.impulse = c.impulse;
       solution.regime = LocalSolution::Regime::sliding;
       return solution;

@@ -120,46 +120,71 @@ struct CompactProblem {
   }
 };
 
+/// The compact copy: bodies in the plan's Morton order, then the walls in the order the contacts
+/// meet them (a serial pass over the ids), then the bodies' and contact points' data filled
+/// concurrently. Each body's world inverse inertia is computed here rather than copied (same
+/// function, same value), so the solver needs its own array only when a polish may run.
 CompactProblem gather_problem(const Model& model, const State& state, const SweepPlan& plan, const ContactList& contacts,
-                              const BodyVelocities& velocity) {
+                              const BodyVelocities& velocity, bool parallel) {
   CompactProblem out;
   constexpr auto none = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> local(model.body_count(), none);
   auto add_body = [&](std::size_t body) {
-    local[body] = static_cast<std::uint32_t>(out.bodies.size());
-    // The world inverse inertia computed here rather than copied (same function, same value): the
-    // caller's array need not be alive beside the copy.
-    out.bodies.push_back({velocity.linear[body], velocity.angular[body],
-                          world_inverse_inertia(model, body, state.orientation[body]), model.inverse_mass[body]});
+    local[body] = static_cast<std::uint32_t>(out.body_id.size());
     out.body_id.push_back(body);
   };
-  // The moving bodies plus room for every wall: a push_back past the reserve would double the
-  // array (128 bytes a body) while the sweeps run.
+  // The moving bodies plus room for every wall: no doubling of the arrays.
   std::size_t fixed_bodies = 0;
   for (std::size_t body = 0; body < model.body_count(); ++body) fixed_bodies += model.is_fixed(body) ? 1 : 0;
-  out.bodies.reserve(plan.body_order.size() + fixed_bodies);
   out.body_id.reserve(plan.body_order.size() + fixed_bodies);
   for (const std::size_t body : plan.body_order) add_body(body);
-  out.points.reserve(plan.order.size());
   for (const std::size_t k : plan.order) {
     const Contact& c = contacts[k];
     if (local[c.id.body_a] == none) add_body(c.id.body_a);  // walls
     if (local[c.id.body_b] == none) add_body(c.id.body_b);
-    out.points.push_back({c.frame, c.delassus, c.arm_a, c.arm_b, c.impulse, c.friction_coefficient,
-                          c.normal_velocity_target, local[c.id.body_a], local[c.id.body_b]});
+  }
+  out.bodies.resize(out.body_id.size());
+  out.points.resize(plan.order.size());
+  const auto bodies = static_cast<std::ptrdiff_t>(out.body_id.size());
+  const auto n = static_cast<std::ptrdiff_t>(plan.order.size());
+#pragma omp parallel if (parallel)
+  {
+#pragma omp for schedule(static) nowait
+    for (std::ptrdiff_t i = 0; i < bodies; ++i) {
+      const std::size_t body = out.body_id[static_cast<std::size_t>(i)];
+      out.bodies[static_cast<std::size_t>(i)] = {velocity.linear[body], velocity.angular[body],
+                                                 world_inverse_inertia(model, body, state.orientation[body]),
+                                                 model.inverse_mass[body]};
+    }
+#pragma omp for schedule(static) nowait
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+      const auto p = static_cast<std::size_t>(i);
+      const Contact& c = contacts[plan.order[p]];
+      out.points[p] = {c.frame, c.delassus, c.arm_a, c.arm_b, c.impulse, c.friction_coefficient, c.normal_velocity_target,
+                       local[c.id.body_a], local[c.id.body_b]};
+    }
   }
   return out;
 }
 
 /// Copies the compact problem's impulses and moving bodies' velocities back.
 void scatter_problem(const Model& model, const SweepPlan& plan, const CompactProblem& compact, ContactList& contacts,
-                     BodyVelocities& velocity) {
-  for (std::size_t p = 0; p < plan.order.size(); ++p) contacts[plan.order[p]].impulse = compact.points[p].impulse;
-  for (std::size_t i = 0; i < compact.bodies.size(); ++i) {
-    const std::size_t body = compact.body_id[i];
-    if (model.is_fixed(body)) continue;
-    velocity.linear[body] = compact.bodies[i].linear;
-    velocity.angular[body] = compact.bodies[i].angular;
+                     BodyVelocities& velocity, bool parallel) {
+  const auto n = static_cast<std::ptrdiff_t>(plan.order.size());
+  const auto bodies = static_cast<std::ptrdiff_t>(compact.bodies.size());
+#pragma omp parallel if (parallel)
+  {
+#pragma omp for schedule(static) nowait
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      contacts[plan.order[static_cast<std::size_t>(p)]].impulse = compact.points[static_cast<std::size_t>(p)].impulse;
+    }
+#pragma omp for schedule(static) nowait
+    for (std::ptrdiff_t i = 0; i < bodies; ++i) {
+      const std::size_t body = compact.body_id[static_cast<std::size_t>(i)];
+      if (model.is_fixed(body)) continue;
+      velocity.linear[body] = compact.bodies[static_cast<std::size_t>(i)].linear;
+      velocity.angular[body] = compact.bodies[static_cast<std::size_t>(i)].angular;
+    }
   }
 }
 
@@ -273,57 +298,64 @@ std::size_t common_node(const std::vector<BlockNode>& nodes, std::size_t i, std:
   return node;
 }
 
-/// One sweep in the plan's order. Serially: group after group (phase by phase). In parallel (one
-/// OpenMP team per sweep, no barrier inside): the threads take the leaves' groups, and whoever
-/// finishes the second child of a tree node sweeps that node's group next, and so on up to the
-/// root (an atomic arrival count per node; its acquire-release ordering makes the sibling's
-/// velocity writes visible). A group is thus always swept after both subtrees below it, and groups
-/// that may run concurrently share no moving body (walls are never written), so every contact is
-/// updated from the same data as in the serial order: the iterate does not depend on the thread
-/// count. The groups' residual sums are added in group order, so neither does the stopping test.
+/// Calls visit(g) once for every group of the plan, each group after both subtrees below it.
+/// Serially: group after group (phase by phase). In parallel (one OpenMP team, no barrier inside):
+/// the threads take the leaves' groups in contiguous runs (a static schedule: with 2 threads and
+/// 16 blocks, thread 0 holds blocks 0-7 and thread 1 blocks 8-15, one subtree each, so only the
+/// root's group waits for the other thread; a dynamic schedule hands the last leaves out together
+/// and leaves one thread to climb the whole path from the last leaf to the root alone, ~12% of the
+/// contacts of the mixed deposit), and whoever finishes the second child of a tree node visits
+/// that node's group next, and so on up to the root (an atomic arrival count per node; its
+/// acquire-release ordering makes the sibling's velocity writes visible). Groups that may run
+/// concurrently share no moving body (walls are never written), so every contact is updated from
+/// the same data as in the serial order: the result does not depend on the thread count.
 /// (A barrier per phase instead costs 5 synchronisations per sweep; on a loaded machine each is a
 /// scheduler time slice.)
-/// In parallel, `group_seconds` receives each group's own sweep time (their sum is what the sweep
-/// costs on one thread), so the caller can tell when the threads spend longer waiting for a core
-/// than working.
+template <class Visit>
+void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit) {
+  const std::size_t groups = plan.group_start.size() - 1;
+  if (!parallel) {
+    for (std::size_t g = 0; g < groups; ++g) visit(g);
+    return;
+  }
+  std::vector<std::atomic<int>> arrivals(groups);
+  for (auto& count : arrivals) count.store(0, std::memory_order_relaxed);
+  const auto leaves = static_cast<std::ptrdiff_t>(plan.phase_start[1]);
+#pragma omp parallel
+  {
+#pragma omp for schedule(static) nowait
+    for (std::ptrdiff_t leaf = 0; leaf < leaves; ++leaf) {
+      std::size_t g = static_cast<std::size_t>(leaf);
+      visit(g);
+      // Climb while this thread completed the second child of the parent.
+      while (plan.parent_group[g] < groups) {
+        g = plan.parent_group[g];
+        if (arrivals[g].fetch_add(1, std::memory_order_acq_rel) == 0) break;  // the sibling's thread goes on
+        visit(g);
+      }
+    }
+  }
+}
+
+/// One sweep of the compact problem (point p = position p of the plan's order), group by group
+/// (visit_groups). The groups' residual sums are added in group order, so the stopping test does
+/// not depend on the thread count either. In parallel, `group_seconds` receives each group's own
+/// sweep time (their sum is what the sweep costs on one thread), so the caller can tell when the
+/// threads spend longer waiting for a core than working.
 template <class Problem>
 double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const std::size_t> order, double relaxation,
                      bool parallel, std::vector<double>& group_residual, std::vector<double>& group_seconds) {
   const std::size_t groups = plan.group_start.size() - 1;
   group_residual.assign(groups, 0.0);
-  auto sweep_group = [&](std::size_t g) {
+  if (parallel) group_seconds.assign(groups, 0.0);
+  visit_groups(plan, parallel, [&](std::size_t g) {
     const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
     if (first == last) return;
+    const auto begin = Clock::now();
     const std::span<const std::size_t> part(order.data() + first, last - first);
     group_residual[g] = nlgs_sweep(problem, part, relaxation).residual_squared;
-  };
-  if (parallel) {
-    group_seconds.assign(groups, 0.0);
-    auto timed_sweep_group = [&](std::size_t g) {
-      const auto begin = Clock::now();
-      sweep_group(g);
-      group_seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
-    };
-    std::vector<std::atomic<int>> arrivals(groups);
-    for (auto& count : arrivals) count.store(0, std::memory_order_relaxed);
-    const auto leaves = static_cast<std::ptrdiff_t>(plan.phase_start[1]);
-#pragma omp parallel
-    {
-#pragma omp for schedule(dynamic, 1) nowait
-      for (std::ptrdiff_t leaf = 0; leaf < leaves; ++leaf) {
-        std::size_t g = static_cast<std::size_t>(leaf);
-        timed_sweep_group(g);
-        // Climb while this thread completed the second child of the parent.
-        while (plan.parent_group[g] < groups) {
-          g = plan.parent_group[g];
-          if (arrivals[g].fetch_add(1, std::memory_order_acq_rel) == 0) break;  // the sibling's thread goes on
-          timed_sweep_group(g);
-        }
-      }
-    }
-  } else {
-    for (std::size_t g = 0; g < groups; ++g) sweep_group(g);
-  }
+    if (parallel) group_seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
+  });
   double residual_squared = 0.0;
   for (const double r : group_residual) residual_squared += r;
   return residual_squared;
@@ -532,17 +564,15 @@ SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& 
   });
   std::vector<std::size_t> group_of_node(nodes.size());
   for (std::size_t g = 0; g < by_phase.size(); ++g) group_of_node[by_phase[g]] = g;
-  // Each contact goes to the lowest node holding all its moving bodies (the root if none moves).
-  struct Entry {
-    std::size_t group;
-    std::uint64_t key;
-    std::size_t contact;
-    bool operator<(const Entry& other) const {
-      return std::tie(group, key, contact) < std::tie(other.group, other.key, other.contact);
-    }
-  };
-  std::vector<Entry> entries(contacts.size());
-  for (std::size_t k = 0; k < contacts.size(); ++k) {
+  // Each contact goes to the lowest node holding all its moving bodies (the root if none moves);
+  // within a group the contacts follow the Morton keys of their points (ties by index).
+  const auto n = static_cast<std::ptrdiff_t>(contacts.size());
+  const bool parallel = n >= min_parallel_items;
+  std::vector<std::size_t> group_of(contacts.size());
+  std::vector<std::uint64_t> point_key(contacts.size());
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
     const std::size_t a = contacts[k].id.body_a, b = contacts[k].id.body_b;
     const bool a_moves = !model.is_fixed(a), b_moves = !model.is_fixed(b);
     std::size_t node = 0;
@@ -551,16 +581,22 @@ SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& 
       const std::size_t block_b = b_moves ? block_of[b] : block_of[a];
       node = common_node(nodes, std::min(block_a, block_b), std::max(block_a, block_b));
     }
-    entries[k] = {group_of_node[node], grid.key(contacts[k].point), k};
+    group_of[k] = group_of_node[node];
+    point_key[k] = grid.key(contacts[k].point);
   }
-  std::sort(entries.begin(), entries.end());
-  plan.order.resize(contacts.size());
+  // A counting sort by group, then each group sorted on its own (concurrently).
   plan.group_start.assign(nodes.size() + 1, 0);
-  for (std::size_t i = 0; i < entries.size(); ++i) {
-    plan.order[i] = entries[i].contact;
-    ++plan.group_start[entries[i].group + 1];
-  }
+  for (const std::size_t g : group_of) ++plan.group_start[g + 1];
   for (std::size_t g = 0; g < nodes.size(); ++g) plan.group_start[g + 1] += plan.group_start[g];
+  plan.order.resize(contacts.size());
+  std::vector<std::size_t> cursor(plan.group_start.begin(), plan.group_start.end() - 1);
+  for (std::size_t k = 0; k < contacts.size(); ++k) plan.order[cursor[group_of[k]]++] = k;
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+  for (std::ptrdiff_t g = 0; g < static_cast<std::ptrdiff_t>(nodes.size()); ++g) {
+    const auto first = plan.order.begin() + static_cast<std::ptrdiff_t>(plan.group_start[static_cast<std::size_t>(g)]);
+    const auto last = plan.order.begin() + static_cast<std::ptrdiff_t>(plan.group_start[static_cast<std::size_t>(g) + 1]);
+    std::sort(first, last, [&](std::size_t x, std::size_t y) { return std::pair(point_key[x], x) < std::pair(point_key[y], y); });
+  }
   plan.phase_start.push_back(0);
   for (std::size_t g = 1; g < nodes.size(); ++g) {
     if (nodes[by_phase[g]].height != nodes[by_phase[g - 1]].height) plan.phase_start.push_back(g);
@@ -580,36 +616,50 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
                            ContactList& contacts, BodyVelocities& velocity) {
   SolverStats stats;
   const auto start = Clock::now();
-  std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
-  BodyCoupledProblem problem{model, contacts, velocity, inverse_inertia};
-
-  // ||q||: the local velocities with no contact impulse (free velocity minus target).
-  double free_norm_squared = 0.0;
-  for (std::size_t k = 0; k < contacts.size(); ++k) {
-    free_norm_squared += problem.local_velocity(k).squaredNorm();
-  }
-  // Warm start: the velocities must include the starting impulses.
-  for (std::size_t k = 0; k < contacts.size(); ++k) {
-    Vec3& r = contacts[k].impulse;
-    r = project_onto_coulomb_cone(r, contacts[k].friction_coefficient);
-    if (r != Vec3::Zero()) problem.apply_impulse_change(k, r);
-  }
-  // Only a polish reads the world inverse inertias again (the compact copy computes its own):
-  // when none can happen, free them before the copy is made (72 bytes a body).
+  // Only a polish works on the ContactList and needs the world inverse inertias as an array (the
+  // compact copy computes its own): when none can run, they are not made (72 bytes a body).
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
                           options.polish_attempts_per_step > 0;
-  if (!may_polish) std::vector<Mat3>().swap(inverse_inertia);
+  const std::vector<Mat3> inverse_inertia = may_polish ? world_inverse_inertias(model, state) : std::vector<Mat3>();
+  BodyCoupledProblem problem{model, contacts, velocity, inverse_inertia};
+
+  const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
+  const std::size_t groups = plan.group_start.size() - 1;
+  // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
+  // costs a futex round trip per sweep).
+  bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items && groups > 1 &&
+                  omp_get_max_threads() > 1;
+  // The sweeps work on a compact copy in the plan's order (contact p of the copy = plan.order[p]);
+  // its velocities are the free velocities and its impulses last step's, not yet applied.
+  CompactProblem compact = gather_problem(model, state, plan, contacts, velocity, parallel);
+  std::vector<double> group_sum(groups, 0.0);
+  auto group_points = [&](std::size_t g) { return std::pair(plan.group_start[g], plan.group_start[g + 1]); };
+
+  // ||q||: the local velocities with no contact impulse (free velocity minus target); read only,
+  // summed group by group, then in group order (the same sum for any thread count).
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(groups); ++i) {
+    const auto [first, last] = group_points(static_cast<std::size_t>(i));
+    double sum = 0.0;
+    for (std::size_t p = first; p < last; ++p) sum += compact.local_velocity(p).squaredNorm();
+    group_sum[static_cast<std::size_t>(i)] = sum;
+  }
+  double free_norm_squared = 0.0;
+  for (const double x : group_sum) free_norm_squared += x;
+  // Warm start: the velocities must include the starting impulses (inside the cone), applied in
+  // the sweeps' order and concurrency (visit_groups).
+  visit_groups(plan, parallel, [&](std::size_t g) {
+    const auto [first, last] = group_points(g);
+    for (std::size_t p = first; p < last; ++p) {
+      Vec3& r = compact.points[p].impulse;
+      r = project_onto_coulomb_cone(r, compact.points[p].friction_coefficient);
+      if (r != Vec3::Zero()) compact.apply_impulse_change(p, r);
+    }
+  });
   const double q_norm = std::sqrt(free_norm_squared);
   const double scale = q_norm > 0.0 ? 1.0 / q_norm : 1.0;
 
-  const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
-  // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
-  // costs a futex round trip per sweep).
-  bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items &&
-                  plan.group_start.size() > 2 && omp_get_max_threads() > 1;
   std::vector<double> group_residual, group_seconds;
-  // The sweeps work on a compact copy in the plan's order (contact p of the copy = plan.order[p]).
-  CompactProblem compact = gather_problem(model, state, plan, contacts, velocity);
   std::vector<std::size_t> positions(contacts.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   int next_polish = options.polish_after;
@@ -634,7 +684,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
           stats.polish_attempts < options.polish_attempts_per_step) {
         ++stats.polish_attempts;
         bool polished = false;
-        scatter_problem(model, plan, compact, contacts, velocity);
+        scatter_problem(model, plan, compact, contacts, velocity, parallel);
         stats.newton_iterations += polish_contacts(model, problem, options, polished);
         refresh_problem(plan, contacts, velocity, compact);
         next_polish *= 2;
@@ -645,22 +695,34 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
       }
     }
     stats.iterations = std::min(stats.iterations, options.max_iterations);
-    scatter_problem(model, plan, compact, contacts, velocity);
+    scatter_problem(model, plan, compact, contacts, velocity, parallel);
   } else {
     stats.converged = true;
   }
 
-  // Final residual on the end-of-step velocities (one pass, no local solves), and statuses.
+  // Final residual on the end-of-step velocities (one pass, no local solves), and statuses; on the
+  // compact copy (the same numbers as the contacts' after the scatter), group by group.
+  std::vector<std::size_t> group_active(groups, 0);
+  std::fill(group_sum.begin(), group_sum.end(), 0.0);
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(groups); ++i) {
+    const auto g = static_cast<std::size_t>(i);
+    const auto [first, last] = group_points(g);
+    for (std::size_t p = first; p < last; ++p) {
+      const CompactProblem::Point& point = compact.points[p];
+      const Vec3& r = point.impulse;
+      group_sum[g] += natural_map(r, compact.local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
+      if (r.x() > 0.0) ++group_active[g];
+      contacts[plan.order[p]].status = r.x() <= 0.0 ? ContactStatus::open
+                                       : tangential_norm(r) >= point.friction_coefficient * r.x() * (1.0 - 1e-9)
+                                           ? ContactStatus::sliding
+                                           : ContactStatus::sticking;
+    }
+  }
   double residual_squared = 0.0;
-  for (std::size_t k = 0; k < contacts.size(); ++k) {
-    Contact& c = contacts[k];
-    residual_squared += natural_map(c.impulse, problem.local_velocity(k), c.friction_coefficient, c.delassus(0, 0))
-                            .squaredNorm();
-    const double tangential = tangential_norm(c.impulse);
-    if (c.impulse.x() > 0.0) ++stats.active_contacts;
-    c.status = c.impulse.x() <= 0.0 ? ContactStatus::open
-               : tangential >= c.friction_coefficient * c.impulse.x() * (1.0 - 1e-9) ? ContactStatus::sliding
-                                                                                     : ContactStatus::sticking;
+  for (std::size_t g = 0; g < groups; ++g) {
+    residual_squared += group_sum[g];
+    stats.active_contacts += group_active[g];
   }
   stats.residual = std::sqrt(residual_squared) * scale;
   stats.sweep_seconds = std::chrono::duration<double>(Clock::now() - start).count();
