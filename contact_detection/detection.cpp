@@ -219,7 +219,8 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
   // Verlet list: a pair's bounding boxes approach by at most the two bodies' displacements, so
   // while every body has moved by less than margin / 2 the list holds every pair within alert.
   bool rebuild = margin == 0.0 || memory.pair_list_margin != margin ||
-                 memory.pair_list_positions.size() != state.body_count();
+                 memory.pair_list_positions.size() != state.body_count() ||
+                 memory.pair_order.size() != memory.pair_list.size();
   if (!rebuild) {
     const double limit = 0.25 * margin * margin;
     for (std::size_t b = 0; b < state.body_count() && !rebuild; ++b) {
@@ -230,17 +231,31 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
     memory.pair_list = find_candidate_pairs(model, state, alert + margin);
     memory.pair_list_positions = state.position;
     memory.pair_list_margin = margin;
+    // The pairs in their contacts' id order: (body_a, body_b) as collide_pair orders them.
+    const auto contact_bodies = [&](const BodyPair& pair) {
+      return model.is_grain(pair.body_a) && !model.is_grain(pair.body_b) ? std::pair(pair.body_b, pair.body_a)
+                                                                         : std::pair(pair.body_a, pair.body_b);
+    };
+    memory.pair_order.resize(memory.pair_list.size());
+    for (std::size_t k = 0; k < memory.pair_order.size(); ++k) memory.pair_order[k] = static_cast<std::uint32_t>(k);
+    std::sort(memory.pair_order.begin(), memory.pair_order.end(), [&](std::uint32_t x, std::uint32_t y) {
+      return contact_bodies(memory.pair_list[x]) < contact_bodies(memory.pair_list[y]);
+    });
   }
   const std::vector<BodyPair>& pairs = memory.pair_list;
   const double broad_seconds = seconds_since(start);
 
   start = Clock::now();
-  // The pairs are collided in waves of `wave` pairs: within a wave each pair writes its own slot
-  // (in parallel), then the wave's lists are appended to `contacts` in pair order, so the list is
-  // the same for any thread count. Only one wave's lists live beside the result (at 1e5 spheres,
-  // one list per pair, all alive at once, were a third of the run's peak memory); the slots keep
-  // their capacity from wave to wave, so a steady run allocates almost nothing here.
+  // The pairs are collided in waves of `wave` pairs, in the order of their contacts' ids
+  // (memory.pair_order): within a wave each pair writes and sorts its own slot (in parallel), then
+  // the wave's lists are appended to `contacts` in that order, so the list comes out sorted by id
+  // and the same for any thread count, without a serial sort of the contacts (walls numbered
+  // after the grains made every step's list need one). Only one wave's lists live beside the
+  // result (at 1e5 spheres, one list per pair, all alive at once, were a third of the run's peak
+  // memory); the slots keep their capacity from wave to wave, so a steady run allocates almost
+  // nothing here.
   const auto by_id = [](const Contact& x, const Contact& y) { return x.id < y.id; };
+  const std::vector<std::uint32_t>& order = memory.pair_order;
   constexpr std::size_t wave = 4096;
   std::vector<ContactList> per_pair(std::min(wave, pairs.size()));
   std::vector<Vec3> normals(per_pair.size());
@@ -256,7 +271,10 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
 #pragma omp parallel for schedule(dynamic, 32) if (count_signed >= min_parallel_items / 4)
     for (std::ptrdiff_t p = 0; p < count_signed; ++p) {
       const auto k = static_cast<std::size_t>(p);
-      collide_pair(model, state, pairs[first + k], alert, memory, per_pair[k], normals[k]);
+      ContactList& list = per_pair[k];
+      collide_pair(model, state, pairs[order[first + k]], alert, memory, list, normals[k]);
+      // (stable_sort allocates a buffer even for a sorted list of two)
+      if (!std::is_sorted(list.begin(), list.end(), by_id)) std::stable_sort(list.begin(), list.end(), by_id);
     }
     std::size_t found = 0;
     for (std::size_t k = 0; k < count; ++k) found += per_pair[k].size();
@@ -265,44 +283,38 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
       contacts.reserve(std::max(contacts.size() + found, contacts.capacity() + contacts.capacity() / 4));
     }
     for (std::size_t k = 0; k < count; ++k) {
-      std::stable_sort(per_pair[k].begin(), per_pair[k].end(), by_id);
       contacts.insert(contacts.end(), per_pair[k].begin(), per_pair[k].end());
       if (!per_pair[k].empty() && !std::isnan(normals[k].x())) {
-        next.pairs.push_back(pairs[first + k]);
+        next.pairs.push_back(pairs[order[first + k]]);
         next.common_normals.push_back(normals[k]);
       }
       per_pair[k].clear();
     }
   }
-  // Pairs come in id order, so the lists sorted pair by pair are usually sorted as a whole; a
-  // global stable sort is needed when a pair's ids interleave with another's (a wall numbered
-  // after the grains is its contacts' body a). std::stable_sort on the contacts would take a
-  // buffer of half the list (152 bytes a point); sorting indices and permuting in place gives the
-  // same order (equal ids keep their order) for 8 bytes a point.
-  if (!std::is_sorted(contacts.begin(), contacts.end(), by_id)) {
-    std::vector<std::size_t> source(contacts.size());
-    for (std::size_t i = 0; i < source.size(); ++i) source[i] = i;
-    std::stable_sort(source.begin(), source.end(),
-                     [&](std::size_t x, std::size_t y) { return contacts[x].id < contacts[y].id; });
-    // Position i receives contacts[source[i]]: follow each cycle once, marking done slots.
-    for (std::size_t i = 0; i < source.size(); ++i) {
-      if (source[i] == i) continue;
-      Contact held = contacts[i];
-      std::size_t j = i;
-      while (source[j] != i) {
-        const std::size_t from = source[j];
-        contacts[j] = contacts[from];
-        source[j] = j;
-        j = from;
-      }
-      contacts[j] = held;
-      source[j] = j;
+  // The common-plane memory is searched by pair (DetectionMemory::find): back to pair order.
+  if (!std::is_sorted(next.pairs.begin(), next.pairs.end())) {
+    std::vector<std::size_t> by_pair(next.pairs.size());
+    for (std::size_t i = 0; i < by_pair.size(); ++i) by_pair[i] = i;
+    std::sort(by_pair.begin(), by_pair.end(), [&](std::size_t x, std::size_t y) { return next.pairs[x] < next.pairs[y]; });
+    std::vector<BodyPair> sorted_pairs(by_pair.size());
+    std::vector<Vec3> sorted_normals(by_pair.size());
+    for (std::size_t i = 0; i < by_pair.size(); ++i) {
+      sorted_pairs[i] = next.pairs[by_pair[i]];
+      sorted_normals[i] = next.common_normals[by_pair[i]];
     }
+    next.pairs = std::move(sorted_pairs);
+    next.common_normals = std::move(sorted_normals);
+  }
+  // Holds when every narrow-phase routine writes its contacts as (a, b) in collide_pair's order;
+  // warm start (carry_impulses) merges on this order, so a violation must not pass silently.
+  if (!std::is_sorted(contacts.begin(), contacts.end(), by_id)) {
+    throw std::logic_error("detect_contacts: a narrow-phase routine wrote contact ids out of its pair's (a, b) order");
   }
   next.contact_count = contacts.size();
   if (stats) stats->candidate_pairs = pairs.size();
   next.pair_list = std::move(memory.pair_list);  // `pairs` is not used below
   next.pair_list_positions = std::move(memory.pair_list_positions);
+  next.pair_order = std::move(memory.pair_order);
   next.pair_list_margin = memory.pair_list_margin;
   memory = std::move(next);
   if (stats) {

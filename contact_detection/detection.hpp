@@ -50,6 +50,10 @@ struct DetectionMemory {
   std::vector<BodyPair> pair_list;
   std::vector<Vec3> pair_list_positions;  ///< m, per body, at the list's broad phase
   double pair_list_margin = 0.0;          ///< m, the margin the list was built with
+  /// Indices into pair_list in the order of their contacts' ids (collide_pair puts a wall first,
+  /// so a wall numbered after the grains is its contacts' body_a): visiting the pairs in this
+  /// order yields a sorted contact list without sorting the contacts.
+  std::vector<std::uint32_t> pair_order;
   /// Contact points the last detection found: the next list's reserved size (an estimate only;
   /// not saved in checkpoints, 0 after a resume).
   std::size_t contact_count = 0;
