@@ -131,9 +131,10 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   compute_free_velocity(model, state, workspace.force, {}, options.integrator.time_step, workspace.velocity);
   timer.finish(Stage::free_velocity);
 
-  // Warm start needs of last step's contacts only their ids and world impulses (40 of 304 bytes
-  // a point): keep those and free the list before this step's is built, so that the two full
-  // lists are never alive together (at 1e5 spheres that was the run's peak memory).
+  // 4a. match_contacts, first half (timed as match_contacts): warm start needs of last step's
+  // contacts only their ids and world impulses (40 of 304 bytes a point): keep those and free the
+  // list before this step's is built, so that the two full lists are never alive together (at
+  // 1e5 spheres that was the run's peak memory).
   std::vector<CarriedImpulse> carried;
   if (options.solver.warm_start) carried = impulses_to_carry(workspace.contacts);
   ContactList().swap(workspace.contacts);
@@ -147,7 +148,7 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   report.contacts = contacts.size();
   timer.restart();
 
-  // 4. match_contacts: last step's impulses warm-start the persistent contacts.
+  // 4b. match_contacts: last step's impulses warm-start the persistent contacts.
   if (options.solver.warm_start) carry_impulses(carried, contacts);
   std::vector<CarriedImpulse>().swap(carried);
   workspace.contacts = std::move(contacts);
