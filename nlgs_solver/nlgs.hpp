@@ -11,6 +11,7 @@
 #include "core/integrator.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "nlgs_solver/overlap_recovery.hpp"
 
 namespace rubble {
 
@@ -20,12 +21,9 @@ struct SolverOptions {
   int max_iterations = 1000;     ///< sweeps at most
   double relaxation = 1.0;       ///< omega in (0, 2): r <- omega r_local + (1 - omega) r_old
   bool warm_start = true;        ///< start from last step's impulses of persistent contacts
-  /// Fraction of an existing interpenetration removed per step through the normal target
-  /// velocity (0 disables; Baumgarte-like, seed 002).
-  double penetration_correction = 0.2;
-  /// m/s: cap on the separation velocity the correction may ask for (so overlaps are undone
-  /// gently instead of ejecting grains).
-  double max_correction_velocity = 1.0;
+  /// The position-level recovery of overlaps left at the end of the step (overlap_recovery.hpp):
+  /// it moves positions only, so it creates no kinetic energy.
+  OverlapRecoveryOptions overlap_recovery{};
   /// Sweeps after which, if not converged, the whole contact problem is polished by Newton steps
   /// (nlgs_solver/README.md, "Newton polish"); later attempts after twice as many sweeps each.
   /// Gauss-Seidel crawls on hyperstatic stacks (four points per face) and its error then carries
@@ -49,7 +47,7 @@ struct SolverOptions {
 /// What one solve did, for the step's report.
 struct SolverStats {
   int iterations = 0;          ///< sweeps done
-  double residual = 0.0;       ///< natural-map residual ||F|| / ||q|| at exit (scaled, see README)
+  double residual = 0.0;       ///< natural-map residual ||F|| / ||q_closing|| at exit (see README)
   bool converged = false;      ///< residual <= tolerance within max_iterations
   int polish_attempts = 0;     ///< Newton polishes started (see SolverOptions::polish_after)
   int newton_iterations = 0;   ///< Newton steps taken by those polishes

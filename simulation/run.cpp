@@ -7,6 +7,7 @@
 #include <malloc.h>
 #endif
 #include <optional>
+#include <stdexcept>
 #include <ostream>
 
 #include "postprocessing/metrics.hpp"
@@ -94,7 +95,9 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
     }
   }
   BodyVelocities free;
-  compute_free_velocity(model, before, workspace.force, {}, h, free);
+  State midpoint = before;
+  drift_to_midpoint(model, options.integrator, midpoint);
+  compute_free_velocity(model, midpoint, workspace.force, {}, options.integrator, free);
   for (std::size_t b = 0; b < n; ++b) {
     if (model.is_fixed(b)) continue;
     if (auto what = velocity_problem(free.linear[b], free.angular[b], speed_limit(model, b, h, max_speed))) {
@@ -130,7 +133,7 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
       return "nlgs_sweeps";
     }
   }
-  return "update_positions";
+  return "finish_step";
 }
 
 /// Grains whose mass properties overflowed or vanished (e.g. a radius of 1e200 m gives an
@@ -255,7 +258,16 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   while (state.step < progress.end_step) {
     const auto step_start = Clock::now();
     before = state;
-    const StepReport report = step(model, state, workspace, run.step);
+    StepReport report;
+    std::optional<Problem> problem;
+    try {
+      report = step(model, state, workspace, run.step);
+    } catch (const std::runtime_error&) {
+      // A non-finite velocity makes the midpoint configuration non-finite, and detection refuses
+      // it before the end-of-step check below: report it as that check would.
+      problem = check_state(model, state, h, control.max_speed);
+      if (!problem) throw;
+    }
 #if defined(__GLIBC__)
     // Every 64 steps the heap's free pages go back to the system. While a run's contact list
     // grows it lives in the heap, until glibc gives blocks over 32 MiB their own mappings; the heap
@@ -265,7 +277,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     // measurable; results do not depend on it.
     if (state.step % 64 == 0) malloc_trim(0);
 #endif
-    if (std::optional<Problem> problem = check_state(model, state, h, control.max_speed)) {
+    if (!problem) problem = check_state(model, state, h, control.max_speed);
+    if (problem) {
       const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
       file->flush();
       throw NumericalFailure(fmt::format(

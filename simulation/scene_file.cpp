@@ -549,7 +549,7 @@ class SceneParser {
     const auto solver = root_.optional_table("solver");
     if (!solver) return;
     solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
-                        "max_correction_velocity", "polish_after", "polish_iterations", "polish_max_contacts",
+                        "max_correction_velocity", "allowed_overlap", "polish_after", "polish_iterations", "polish_max_contacts",
                         "polish_attempts_per_step", "block_count"},
                        "in [solver]");
     auto& options = scene_.run.step.solver;
@@ -558,10 +558,10 @@ class SceneParser {
         static_cast<int>(solver->integer_or("max_iterations", options.max_iterations, 1, 100'000'000));
     options.relaxation = solver->number_or("relaxation", options.relaxation, open(0.0, 2.0));
     options.warm_start = solver->boolean_or("warm_start", options.warm_start);
-    options.penetration_correction =
-        solver->number_or("penetration_correction", options.penetration_correction, closed(0.0, 1.0));
-    options.max_correction_velocity =
-        solver->number_or("max_correction_velocity", options.max_correction_velocity, non_negative());
+    auto& recovery = options.overlap_recovery;
+    recovery.fraction = solver->number_or("penetration_correction", recovery.fraction, closed(0.0, 1.0));
+    recovery.max_velocity = solver->number_or("max_correction_velocity", recovery.max_velocity, non_negative());
+    recovery.allowed_overlap = solver->number_or("allowed_overlap", recovery.allowed_overlap, closed(0.0, 1.0));
     options.polish_after = static_cast<int>(solver->integer_or("polish_after", options.polish_after, 0, 100'000'000));
     options.polish_iterations =
         static_cast<int>(solver->integer_or("polish_iterations", options.polish_iterations, 1, 10'000));
@@ -1435,8 +1435,9 @@ std::string scene_to_toml(const Scene& scene) {
   out << "max_iterations = " << solver.max_iterations << "\n";
   out << "relaxation = " << format_number(solver.relaxation) << "\n";
   out << "warm_start = " << (solver.warm_start ? "true" : "false") << "\n";
-  out << "penetration_correction = " << format_number(solver.penetration_correction) << "\n";
-  out << "max_correction_velocity = " << format_number(solver.max_correction_velocity) << "\n";
+  out << "penetration_correction = " << format_number(solver.overlap_recovery.fraction) << "\n";
+  out << "max_correction_velocity = " << format_number(solver.overlap_recovery.max_velocity) << "\n";
+  out << "allowed_overlap = " << format_number(solver.overlap_recovery.allowed_overlap) << "\n";
   out << "polish_after = " << solver.polish_after << "\n";
   out << "polish_iterations = " << solver.polish_iterations << "\n";
   out << "polish_max_contacts = " << solver.polish_max_contacts << "\n";

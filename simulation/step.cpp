@@ -45,9 +45,9 @@ void self_gravity_accelerations(const Model& model, const State& state, const gr
   }
 }
 
-/// Stage 1: external forces on every body at the start of the step (gravity; walls get none).
-/// With evaluate_every = k > 1 the self-gravity field is evaluated at steps n, n+k, ... and held in
-/// between: the grains' forces stay m a(t_n) for t in [t_n, t_n + k h). The simplest multiple time
+/// Stage 2: external forces on every body at the midpoint configuration q_m (gravity; walls get
+/// none). With evaluate_every = k > 1 the self-gravity field is evaluated at the midpoints of steps
+/// n, n+k, ... and held in between: the grains' forces stay m a(q_m of step n) for k steps. The simplest multiple time
 /// step scheme: its error in the acceleration used is a(t_n) - a(t) = O((t - t_n) |da/dt|), i.e.
 /// O(k h |da/dt|) at worst per step, first order in k h (a time-interpolated or impulse (r-RESPA,
 /// Tuckerman et al. 1992) scheme would be second order but needs the field at two times or a
@@ -106,14 +106,17 @@ Vec3 central_acceleration(const CentralField& field, const Vec3& position) {
 
 std::string_view stage_name(Stage stage) {
   switch (stage) {
+    case Stage::drift_to_midpoint: return "drift_to_midpoint";
     case Stage::external_forces: return "external_forces";
     case Stage::free_velocity: return "free_velocity";
+    case Stage::store_impulses: return "store_impulses";
     case Stage::broad_phase: return "broad_phase";
     case Stage::narrow_phase: return "narrow_phase";
     case Stage::match_contacts: return "match_contacts";
     case Stage::solver_preparation: return "solver_preparation";
     case Stage::nlgs_sweeps: return "nlgs_sweeps";
-    case Stage::update_positions: return "update_positions";
+    case Stage::overlap_recovery: return "overlap_recovery";
+    case Stage::finish_step: return "finish_step";
     case Stage::count: break;
   }
   return "unknown";
@@ -122,25 +125,29 @@ std::string_view stage_name(Stage stage) {
 StepReport step(const Model& model, State& state, StepWorkspace& workspace, const StepOptions& options) {
   StepReport report;
   StageTimer timer(report);
+  const IntegratorOptions& integrator = options.integrator;
 
-  // 1. external_forces: gravity (uniform, central, or self-gravity, possibly held) at the start of the step.
+  // 1. drift_to_midpoint: q_m = q_n + (1 - theta) h v_n; forces and contacts are taken there.
+  drift_to_midpoint(model, integrator, state);
+  timer.finish(Stage::drift_to_midpoint);
+
+  // 2. external_forces: gravity (uniform, central, or self-gravity, possibly held) at q_m.
   compute_external_forces(model, state, options.gravity, workspace);
   timer.finish(Stage::external_forces);
 
-  // 2. free_velocity: v_free = v + h M^-1 f (+ gyroscopic torque).
-  compute_free_velocity(model, state, workspace.force, {}, options.integrator.time_step, workspace.velocity);
+  // 3. free_velocity: v_free = v_n + h M^-1 f(q_m) (+ implicit gyroscopic term).
+  compute_free_velocity(model, state, workspace.force, {}, integrator, workspace.velocity);
   timer.finish(Stage::free_velocity);
 
-  // 4a. match_contacts, first half (timed as match_contacts): warm start needs of last step's
-  // contacts only their ids and world impulses (40 of 304 bytes a point): keep those and free the
-  // list before this step's is built, so that the two full lists are never alive together (at
-  // 1e5 spheres that was the run's peak memory).
+  // 4. store_impulses: warm start needs of last step's contacts only their ids and world impulses
+  // (40 of 304 bytes a point): keep those and free the list before this step's is built, so that
+  // the two full lists are never alive together (at 1e5 spheres that was the run's peak memory).
   std::vector<CarriedImpulse> carried;
   if (options.solver.warm_start) carried = impulses_to_carry(workspace.contacts);
   ContactList().swap(workspace.contacts);
-  timer.finish(Stage::match_contacts);
+  timer.finish(Stage::store_impulses);
 
-  // 3. detect: broad phase, narrow phase -> contact points, frames, gaps.
+  // 5. detect at q_m: broad phase, narrow phase -> contact points, frames, gaps.
   DetectionStats detection;
   ContactList contacts = detect_contacts(model, state, options.detection, workspace.detection_memory, &detection);
   report.stage_seconds[static_cast<std::size_t>(Stage::broad_phase)] += detection.broad_phase_seconds;
@@ -148,22 +155,27 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   report.contacts = contacts.size();
   timer.restart();
 
-  // 4b. match_contacts: last step's impulses warm-start the persistent contacts.
+  // 6. match_contacts: last step's impulses warm-start the persistent contacts.
   if (options.solver.warm_start) carry_impulses(carried, contacts);
   std::vector<CarriedImpulse>().swap(carried);
   workspace.contacts = std::move(contacts);
   timer.finish(Stage::match_contacts);
 
-  // 5. solve: Delassus blocks and targets, then NLGS sweeps; 6. update_velocity happens inside
-  // the sweeps (v = v_free + M^-1 H r, updated contact by contact).
-  prepare_contacts(model, state, workspace.velocity, options.integrator, options.solver, workspace.contacts);
+  // 7. solve: Delassus blocks and targets, then NLGS sweeps; the velocity update
+  // v_{n+1} = v_free + M^-1 H r happens inside the sweeps, contact by contact.
+  prepare_contacts(model, state, workspace.velocity, integrator, options.solver, workspace.contacts);
   timer.finish(Stage::solver_preparation);
   report.solver = solve_contacts(model, state, options.solver, workspace.contacts, workspace.velocity);
   timer.finish(Stage::nlgs_sweeps);
 
-  // 7. update_position: x += h((1 - theta) v_n + theta v_{n+1}), q <- exp(h w_theta) q.
-  update_positions(model, options.integrator, workspace.velocity, state);
-  timer.finish(Stage::update_positions);
+  // 8. overlap_recovery: displacements (not velocities) that remove overlap left beyond the allowed depth.
+  report.overlap = recover_overlaps(model, state, workspace.contacts, workspace.velocity, integrator,
+                                    options.solver.overlap_recovery, workspace.displacement_velocity);
+  timer.finish(Stage::overlap_recovery);
+
+  // 9. finish_step: q_{n+1} = q_m + theta h v_{n+1} (+ the recovery's displacement); t += h.
+  finish_step(model, integrator, workspace.velocity, workspace.displacement_velocity, state);
+  timer.finish(Stage::finish_step);
   return report;
 }
 

@@ -50,9 +50,9 @@ struct StepOptions {
   GravitySettings gravity{};       ///< external field
 };
 
-/// The stages of a step, in order, for timing reports.
-enum class Stage { external_forces, free_velocity, broad_phase, narrow_phase, match_contacts, solver_preparation,
-                   nlgs_sweeps, update_positions, count };
+/// The stages of a step, in execution order (step.cpp), for timing reports.
+enum class Stage { drift_to_midpoint, external_forces, free_velocity, store_impulses, broad_phase, narrow_phase,
+                   match_contacts, solver_preparation, nlgs_sweeps, overlap_recovery, finish_step, count };
 /// Printable name of a stage.
 std::string_view stage_name(Stage stage);
 
@@ -60,6 +60,7 @@ std::string_view stage_name(Stage stage);
 struct StepReport {
   std::size_t contacts = 0;          ///< contact points found (gap < alert distance)
   SolverStats solver{};              ///< iterations, residual
+  OverlapRecoveryStats overlap{};    ///< overlaps beyond the allowed depth, removed by displacement
   std::array<double, static_cast<std::size_t>(Stage::count)> stage_seconds{};  ///< wall time per stage
 };
 
@@ -70,6 +71,7 @@ struct StepWorkspace {
   DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
   std::vector<Vec3> force;           ///< scratch: external force per body
   BodyVelocities velocity;           ///< scratch: free, then end-of-step velocities
+  BodyVelocities displacement_velocity;  ///< scratch: the overlap recovery's pseudo-velocities (often empty)
   /// Self-gravity acceleration per body (m/s^2; zero for walls) as last evaluated, reused until
   /// GravitySettings::evaluate_every steps have passed. Empty when evaluate_every = 1.
   std::vector<Vec3> held_gravity;
@@ -77,7 +79,8 @@ struct StepWorkspace {
   std::int64_t held_gravity_step = -1;
 };
 
-/// Advances `state` by one step of the Moreau-Jean theta-method.
+/// Advances `state` by one step of the Moreau-Jean theta-method in Moreau's midpoint form
+/// (core/integrator.hpp): forces and contacts at q_m = q_n + (1 - theta) h v_n.
 StepReport step(const Model& model, State& state, StepWorkspace& workspace, const StepOptions& options);
 
 }  // namespace rubble

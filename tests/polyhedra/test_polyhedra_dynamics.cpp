@@ -2,6 +2,8 @@
 // the incline (stick / slide at a = g (sin a - mu cos a)), a tower, an edge-edge impact and a pour.
 #include <gtest/gtest.h>
 
+#include <iostream>
+
 #include <cmath>
 #include <random>
 
@@ -79,12 +81,15 @@ TEST(PolyhedraDynamics, CubeOnAnInclineSticksOrSlidesNeverRolls) {
 // A tower of 10 cubes (5 cm) on a floor, mu = 0.5: after 10^4 steps the top cube has moved by
 // less than 1e-6 of its size. With four points per face the tangential impulses are not unique
 // and plain sweeps crawl (10^3-10^4 a step, tests/stability); the Newton polish
-// (SolverOptions::polish_after) solves each step in a few dozen sweeps.
+// (SolverOptions::polish_after) solves each step in a few dozen sweeps. The drift is the solver's
+// residual integrated over the steps (measured: 6.5e-8 m at tolerance 1e-6, 2.5e-8 m at 1e-7,
+// 7e-10 m at 1e-8, same CPU time), since no velocity-level overlap correction pulls the stack
+// back any more (nlgs_solver/overlap_recovery.hpp): tolerance 1e-7.
 TEST(PolyhedraDynamics, TowerOfTenCubesStaysPut) {
   TestScene s(2500.0, 0.5, 0.0);
   s.uniform_gravity(g);
   s.options.integrator.time_step = 1e-3;
-  s.options.solver.tolerance = 1e-6;
+  s.options.solver.tolerance = 1e-7;
   s.options.solver.max_iterations = 1000;
   s.plane(Vec3::Zero(), Vec3::UnitZ());
   const double side = 0.05;
@@ -97,7 +102,9 @@ TEST(PolyhedraDynamics, TowerOfTenCubesStaysPut) {
     ASSERT_EQ(report.contacts, 40u) << "step " << k;  // 4 points per face, every step
     worst_sweeps = std::max(worst_sweeps, report.solver.iterations);
   }
-  EXPECT_LT((s.state.position[static_cast<std::size_t>(top)] - start).norm(), 1e-6 * side);
+  const Vec3 drift = s.state.position[static_cast<std::size_t>(top)] - start;
+  std::cout << "tower of 10 cubes: top drift (" << drift.transpose() << ") m, worst sweeps " << worst_sweeps << "\n";
+  EXPECT_LT(drift.norm(), 1e-6 * side);
   EXPECT_LT(worst_sweeps, 1000);
 }
 

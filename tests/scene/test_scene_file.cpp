@@ -93,8 +93,8 @@ TEST(ParseScene, GoodSceneGivesItsModelStateAndOptions) {
   EXPECT_EQ(scene.run.step.solver.max_iterations, 200);
   EXPECT_EQ(scene.run.step.solver.relaxation, 0.9);
   EXPECT_FALSE(scene.run.step.solver.warm_start);
-  EXPECT_EQ(scene.run.step.solver.penetration_correction, 0.5);
-  EXPECT_EQ(scene.run.step.solver.max_correction_velocity, 0.25);
+  EXPECT_EQ(scene.run.step.solver.overlap_recovery.fraction, 0.5);
+  EXPECT_EQ(scene.run.step.solver.overlap_recovery.max_velocity, 0.25);
   EXPECT_EQ(scene.run.step.solver.polish_after, 15);
   EXPECT_EQ(scene.run.step.solver.polish_iterations, 7);
   EXPECT_EQ(scene.run.step.solver.polish_max_contacts, 500u);

@@ -77,7 +77,7 @@ TEST(StabilityRush, FiveHundredSpheresRushToTheCentreAndPackAtRest) {
   s.options.detection.alert_distance = 0.1;
   s.options.solver.tolerance = 1e-4;
   s.options.solver.max_iterations = 2000;
-  s.options.solver.max_correction_velocity = 0.1;
+  s.options.solver.overlap_recovery.max_velocity = 0.1;
 
   // Random sequential placement without overlap, in antipodal pairs: uniform in the ball, radius
   // uniform in [0.4, 0.5] m.

@@ -133,7 +133,7 @@ TEST(Stability, OverlapRecoveryWithoutEjection) {
     for (int z = 0; z < 4; ++z)
       balls.push_back(s.sphere(r, Vec3(x * (2 * r - overlap), 0, r - overlap + z * (2 * r - overlap))));
   s.options.solver.tolerance = 1e-6;
-  s.options.solver.max_correction_velocity = 1.0;
+  s.options.solver.overlap_recovery.max_velocity = 1.0;
   double max_speed = 0.0;
   for (int k = 0; k < 5000; ++k) {
     s.advance();
