@@ -340,22 +340,25 @@ void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit) {
 /// sweep time (their sum is what the sweep costs on one thread), so the caller can tell when the
 /// threads spend longer waiting for a core than working.
 template <class Problem>
-double planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const std::size_t> order, double relaxation,
-                     bool parallel, std::vector<double>& group_residual, std::vector<double>& group_seconds) {
+SweepResult planned_sweep(Problem& problem, const SweepPlan& plan, std::span<const std::size_t> order, double relaxation,
+                          bool parallel, std::vector<SweepResult>& group_result, std::vector<double>& group_seconds) {
   const std::size_t groups = plan.group_start.size() - 1;
-  group_residual.assign(groups, 0.0);
+  group_result.assign(groups, SweepResult{});
   if (parallel) group_seconds.assign(groups, 0.0);
   visit_groups(plan, parallel, [&](std::size_t g) {
     const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
     if (first == last) return;
     const auto begin = Clock::now();
     const std::span<const std::size_t> part(order.data() + first, last - first);
-    group_residual[g] = nlgs_sweep(problem, part, relaxation).residual_squared;
+    group_result[g] = nlgs_sweep(problem, part, relaxation);
     if (parallel) group_seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
   });
-  double residual_squared = 0.0;
-  for (const double r : group_residual) residual_squared += r;
-  return residual_squared;
+  SweepResult sum;
+  for (const SweepResult& r : group_result) {
+    sum.residual_squared += r.residual_squared;
+    sum.impulse_squared += r.impulse_squared;
+  }
+  return sum;
 }
 
 /// The contacts' problem as explicit data for the Newton polish, in scaled impulses
@@ -431,7 +434,9 @@ ScaledProblem assemble_scaled_problem(const Model& model, const BodyCoupledProbl
 /// One Newton polish of the current impulses (see SolverOptions::polish_after). On success the
 /// impulses and the bodies' velocities hold the polished solution. Returns the Newton steps taken
 /// and sets `converged` when the sweeps' criterion is met.
-int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const SolverOptions& options, bool& converged) {
+/// `tolerance` is on the FCLib measure of the whole problem (||F|| / ||q|| over every contact).
+int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const SolverOptions& options, double tolerance,
+                    bool& converged) {
   ContactList& contacts = coupled.contacts;
   const std::size_t n = contacts.size();
   ScaledProblem scaled = assemble_scaled_problem(model, coupled);
@@ -453,7 +458,7 @@ int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const Solve
     }
   }
   LocalProblemOptions polish;
-  polish.tolerance = options.tolerance;
+  polish.tolerance = tolerance;
   polish.polish_iterations = options.polish_iterations;
   double error = fclib_error(problem, r, u);
   const double before = error;
@@ -468,7 +473,7 @@ int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const Solve
       coupled.apply_impulse_change(k, delta);
     }
   }
-  converged = error <= options.tolerance;
+  converged = error <= tolerance;
   return steps;
 }
 
@@ -632,12 +637,13 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   std::vector<double> group_sum(groups, 0.0);
   auto group_points = [&](std::size_t g) { return std::pair(plan.group_start[g], plan.group_start[g + 1]); };
 
-  // The scale of the residual: ||q|| over the contacts the free motion drives together (q_n < 0,
-  // q = the local velocity with no contact impulse, i.e. the free velocity minus the target).
-  // Only they need an impulse by themselves; open contacts of falling grains have q_n of the order
-  // gap / h, and summing them too let a deposit whose few loaded contacts were far from converged
-  // pass the test (nlgs_solver/README.md, "Convergence criterion"). Summed group by group, then in
-  // group order (the same sum for any thread count); if no contact closes, ||q|| of all of them.
+  // The scale of the residual (nlgs_solver/README.md, "Convergence criterion"):
+  // sqrt(||q_closing||^2 + ||W_nn r||^2), q_closing the local velocities with no contact impulse
+  // (free velocity minus target) of the contacts the free motion drives together (q_n < 0), and
+  // W_nn r the velocity changes the impulses make. Open contacts of falling grains have q_n of the
+  // order gap / h: counting them (the earlier ||q||) let a deposit whose few loaded contacts were
+  // far from converged pass the test. Summed group by group, then in group order (the same sum for
+  // any thread count); if no contact closes, ||q|| of all of them.
   std::vector<double> group_all(groups, 0.0);
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(groups); ++i) {
@@ -667,18 +673,17 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
       if (r != Vec3::Zero()) compact.apply_impulse_change(p, r);
     }
   });
-  const double q_norm = std::sqrt(free_norm_squared);
-  const double scale = q_norm > 0.0 ? 1.0 / q_norm : 1.0;
 
-  std::vector<double> group_residual, group_seconds;
+  std::vector<SweepResult> group_result;
+  std::vector<double> group_seconds;
   std::vector<std::size_t> positions(contacts.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   int next_polish = options.polish_after;
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
       const auto sweep_start = Clock::now();
-      const double sweep_residual_squared =
-          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_residual, group_seconds);
+      const SweepResult sweep =
+          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_result, group_seconds);
       if (parallel) {
         // When the threaded sweep took longer than its work on one thread, the threads waited for
         // cores busy with other processes: sweep serially for the rest of the step. Both paths
@@ -687,7 +692,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
         for (const double t : group_seconds) work += t;
         if (std::chrono::duration<double>(Clock::now() - sweep_start).count() > work) parallel = false;
       }
-      if (std::sqrt(sweep_residual_squared) * scale <= options.tolerance) {
+      if (std::sqrt(sweep.residual_squared) <= options.tolerance * std::sqrt(free_norm_squared + sweep.impulse_squared)) {
         stats.converged = true;
         break;
       }
@@ -696,7 +701,11 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
         ++stats.polish_attempts;
         bool polished = false;
         scatter_problem(model, plan, compact, contacts, velocity, parallel);
-        stats.newton_iterations += polish_contacts(model, problem, options, polished);
+        // The polish measures ||F|| / ||q|| over every contact: the same test, rescaled.
+        const double tolerance = all_norm_squared > 0.0
+                                     ? options.tolerance * std::sqrt((free_norm_squared + sweep.impulse_squared) / all_norm_squared)
+                                     : options.tolerance;
+        stats.newton_iterations += polish_contacts(model, problem, options, tolerance, polished);
         refresh_problem(plan, contacts, velocity, compact);
         next_polish *= 2;
         if (polished) {
@@ -715,6 +724,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   // compact copy (the same numbers as the contacts' after the scatter), group by group.
   std::vector<std::size_t> group_active(groups, 0);
   std::fill(group_sum.begin(), group_sum.end(), 0.0);
+  std::fill(group_all.begin(), group_all.end(), 0.0);
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(groups); ++i) {
     const auto g = static_cast<std::size_t>(i);
@@ -723,6 +733,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
       const CompactProblem::Point& point = compact.points[p];
       const Vec3& r = point.impulse;
       group_sum[g] += natural_map(r, compact.local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
+      group_all[g] += (point.delassus(0, 0) * r).squaredNorm();
       if (r.x() > 0.0) ++group_active[g];
       contacts[plan.order[p]].status = r.x() <= 0.0 ? ContactStatus::open
                                        : tangential_norm(r) >= point.friction_coefficient * r.x() * (1.0 - 1e-9)
@@ -730,12 +741,14 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
                                            : ContactStatus::sticking;
     }
   }
-  double residual_squared = 0.0;
+  double residual_squared = 0.0, impulse_squared = 0.0;
   for (std::size_t g = 0; g < groups; ++g) {
     residual_squared += group_sum[g];
+    impulse_squared += group_all[g];
     stats.active_contacts += group_active[g];
   }
-  stats.residual = std::sqrt(residual_squared) * scale;
+  const double scale_squared = free_norm_squared + impulse_squared;
+  stats.residual = scale_squared > 0.0 ? std::sqrt(residual_squared / scale_squared) : std::sqrt(residual_squared);
   stats.sweep_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return stats;
 }

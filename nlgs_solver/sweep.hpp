@@ -18,6 +18,7 @@ namespace rubble {
 /// Sums over one sweep, for the convergence test.
 struct SweepResult {
   double residual_squared = 0.0;  ///< sum over contacts of ||F_k||^2 (natural map, velocity units)
+  double impulse_squared = 0.0;   ///< sum over contacts of ||W_nn,k r_k||^2 after the update (velocity units)
 };
 
 /// Sweeps the contacts in `order`: each local problem is solved exactly with the others frozen
@@ -38,6 +39,7 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     if (relaxation != 1.0) next = relaxation * next + (1.0 - relaxation) * r;
     const Vec3 delta = next - r;
     r = next;
+    result.impulse_squared += (W(0, 0) * next).squaredNorm();
     problem.apply_impulse_change(k, delta);
   }
   return result;

@@ -103,6 +103,26 @@ std::vector<int> grain_contact_counts(const Model& model, const ContactList& con
   return counts;
 }
 
+GrainMomenta grain_momenta(const Model& model, const State& state) {
+  GrainMomenta p;
+  Vec3 weighted_position = Vec3::Zero();
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
+    if (!model.is_grain(i)) continue;
+    p.linear += model.mass[i] * state.velocity[i];
+    p.mass += model.mass[i];
+    weighted_position += model.mass[i] * state.position[i];
+  }
+  p.centre_of_mass = p.mass > 0.0 ? Vec3(weighted_position / p.mass) : Vec3::Zero();
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
+    if (!model.is_grain(i)) continue;
+    const Vec3 arm = state.position[i] - p.centre_of_mass;
+    const Mat3 rotation = state.orientation[i].toRotationMatrix();
+    const Vec3 spin = rotation * model.principal_inertia[i].cwiseProduct(rotation.transpose() * state.angular_velocity[i]);
+    p.angular += model.mass[i] * arm.cross(state.velocity[i]) + spin;
+  }
+  return p;
+}
+
 AggregateMetrics compute_metrics(const Model& model, const State& state, const ContactList& contacts,
                                  const PotentialSettings& potential, const ContactMetricsOptions& options) {
   AggregateMetrics m;
@@ -110,19 +130,13 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   m.step = state.step;
   const std::size_t n = model.body_count();
 
-  // Energies, centre of mass, linear momentum.
-  double total_mass = 0.0;
-  Vec3 weighted_position = Vec3::Zero();
+  // Energies and grain volume.
   for (std::size_t i = 0; i < n; ++i) {
     if (!model.is_grain(i)) continue;
     ++m.grains;
-    const double mass = model.mass[i];
     const Vec3 w_body = state.orientation[i].conjugate() * state.angular_velocity[i];
-    m.translational_energy += 0.5 * mass * state.velocity[i].squaredNorm();
+    m.translational_energy += 0.5 * model.mass[i] * state.velocity[i].squaredNorm();
     m.rotational_energy += 0.5 * w_body.dot(model.principal_inertia[i].cwiseProduct(w_body));
-    m.linear_momentum += mass * state.velocity[i];
-    total_mass += mass;
-    weighted_position += mass * state.position[i];
     m.grain_volume += model.volume[i];
   }
   if (m.grains == 0) return m;
@@ -130,16 +144,17 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   m.mean_kinetic_energy = m.kinetic_energy / static_cast<double>(m.grains);
   m.potential_energy = potential_energy(model, state, potential);
   m.total_energy = m.kinetic_energy + m.potential_energy;
-  m.centre_of_mass = total_mass > 0.0 ? Vec3(weighted_position / total_mass) : Vec3::Zero();
+  const GrainMomenta momenta = grain_momenta(model, state);
+  m.linear_momentum = momenta.linear;
+  m.angular_momentum = momenta.angular;
+  m.centre_of_mass = momenta.centre_of_mass;
+  const double total_mass = momenta.mass;
 
-  // Angular momentum about the centre of mass, sizes, D_max.
+  // Sizes, D_max.
   double reach = 0.0, diameter_sum = 0.0, equivalent_sum = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!model.is_grain(i)) continue;
     const Vec3 arm = state.position[i] - m.centre_of_mass;
-    const Mat3 rotation = state.orientation[i].toRotationMatrix();
-    const Vec3 spin = rotation * model.principal_inertia[i].cwiseProduct(rotation.transpose() * state.angular_velocity[i]);
-    m.angular_momentum += model.mass[i] * arm.cross(state.velocity[i]) + spin;
     reach = std::max(reach, arm.norm() + model.bounding_radius[i]);
     diameter_sum += 2.0 * model.bounding_radius[i];
     equivalent_sum += std::cbrt(6.0 * model.volume[i] / std::numbers::pi);

@@ -20,6 +20,17 @@ namespace rubble {
 /// I the principal inertia in the body frame, R the body's rotation). Walls contribute nothing.
 double kinetic_energy(const Model& model, const State& state);
 
+/// Linear momentum of the grains and their angular momentum about their centre of mass.
+struct GrainMomenta {
+  Vec3 linear = Vec3::Zero();          ///< kg m/s, sum m v
+  Vec3 angular = Vec3::Zero();         ///< kg m^2/s, sum m (x - x_cm) x v + R I R^T w
+  Vec3 centre_of_mass = Vec3::Zero();  ///< m
+  double mass = 0.0;                   ///< kg, of the grains
+};
+
+/// The grains' momenta (walls left out): what a run conserves without walls and external fields.
+GrainMomenta grain_momenta(const Model& model, const State& state);
+
 /// Which gravity the potential energy is measured in (the run's own gravity).
 struct PotentialSettings {
   enum class Kind {

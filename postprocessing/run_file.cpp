@@ -145,6 +145,11 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
 }  // namespace
 
 /// The open file, its series columns and the rows not yet written.
+/// The conservation monitor's series columns (double, one value a step), in this order.
+constexpr std::array<const char*, 8> conservation_columns{
+    "potential_energy",   "total_energy",       "linear_momentum_x",  "linear_momentum_y",
+    "linear_momentum_z",  "angular_momentum_x", "angular_momentum_y", "angular_momentum_z"};
+
 struct RunFile::Impl {
   fs::path path;
   Handle file;
@@ -159,6 +164,9 @@ struct RunFile::Impl {
   std::vector<std::int64_t> step, contacts, active_contacts;
   std::vector<int> iterations;
   std::vector<double> time, kinetic_energy, residual, wall_seconds;
+  // The conservation monitor, after wall_seconds: potential_energy, total_energy, linear_momentum_x,
+  // _y, _z, angular_momentum_x, _y, _z (conservation_columns).
+  std::vector<std::vector<double>> conservation = std::vector<std::vector<double>>(conservation_columns.size());
   std::vector<std::vector<double>> stage_seconds;
   std::int64_t rows = 0;
   std::int64_t snapshots = 0;
@@ -175,6 +183,8 @@ struct RunFile::Impl {
     columns[5].append(iterations.data(), count, path);
     columns[6].append(residual.data(), count, path);
     columns[7].append(wall_seconds.data(), count, path);
+    for (std::size_t c = 0; c < conservation.size(); ++c) columns[8 + c].append(conservation[c].data(), count, path);
+    for (auto& column : conservation) column.clear();
     for (std::size_t s = 0; s < stage_columns.size(); ++s) stage_columns[s].append(stage_seconds[s].data(), count, path);
     for (auto* column : {&step, &contacts, &active_contacts}) column->clear();
     for (auto* column : {&time, &kinetic_energy, &residual, &wall_seconds}) column->clear();
@@ -238,6 +248,7 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   impl->columns.emplace_back(series, "iterations", H5T_NATIVE_INT, chunk, path);
   impl->columns.emplace_back(series, "residual", H5T_NATIVE_DOUBLE, chunk, path);
   impl->columns.emplace_back(series, "wall_seconds", H5T_NATIVE_DOUBLE, chunk, path);
+  for (const char* name : conservation_columns) impl->columns.emplace_back(series, name, H5T_NATIVE_DOUBLE, chunk, path);
   impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
   for (std::string_view name : stage_names) {
     impl->stage_names.emplace_back(name);
@@ -284,6 +295,9 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
                                                               {"wall_seconds", H5T_NATIVE_DOUBLE}}};
   for (const auto& [name, type] : columns) {
     impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, name, type, keep, path));
+  }
+  for (const char* name : conservation_columns) {
+    impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, name, H5T_NATIVE_DOUBLE, keep, path));
   }
   impl->stage_group = hdf5::open_group(series, "stage_seconds", path);
   for (std::string_view name : stage_names) {
@@ -346,6 +360,10 @@ void RunFile::append_series(const SeriesRow& row) {
   f.iterations.push_back(row.iterations);
   f.residual.push_back(row.residual);
   f.wall_seconds.push_back(row.wall_seconds);
+  const std::array<double, conservation_columns.size()> monitor{
+      row.potential_energy,      row.total_energy,          row.linear_momentum.x(),  row.linear_momentum.y(),
+      row.linear_momentum.z(),   row.angular_momentum.x(),  row.angular_momentum.y(), row.angular_momentum.z()};
+  for (std::size_t c = 0; c < monitor.size(); ++c) f.conservation[c].push_back(monitor[c]);
   for (std::size_t s = 0; s < f.stage_names.size(); ++s) f.stage_seconds[s].push_back(row.stage_seconds[s]);
   ++f.rows;
   if (f.step.size() >= series_buffer_rows) {

@@ -31,6 +31,10 @@ struct SeriesRow {
   int iterations = 0;                ///< NLGS sweeps done
   double residual = 0.0;             ///< NLGS residual at exit
   double wall_seconds = 0.0;         ///< wall time of the whole step, s
+  double potential_energy = 0.0;     ///< J, gravitational potential energy of the grains (StepReport)
+  double total_energy = 0.0;         ///< J, kinetic + potential
+  Vec3 linear_momentum = Vec3::Zero();   ///< kg m/s, of the grains
+  Vec3 angular_momentum = Vec3::Zero();  ///< kg m^2/s, of the grains about their centre of mass
   /// Wall time of each stage, s, in the order of the stage names given to RunFile::create.
   /// A view: the caller's array must live until append_series returns (it is copied).
   std::span<const double> stage_seconds;

@@ -255,6 +255,9 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   if (control.resume == nullptr) file->write_snapshot(state, workspace.contacts);
 
   State before;  // the state at the start of the step, to locate a failure
+  std::optional<double> potential;  // the grains' potential energy after the last step, J
+  const double alert_distance = resolve_alert_distance(model, run.step.detection);
+  bool tunnelling_warned = false;
   while (state.step < progress.end_step) {
     const auto step_start = Clock::now();
     before = state;
@@ -298,6 +301,37 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     row.iterations = report.solver.iterations;
     row.residual = report.solver.residual;
     row.wall_seconds = step_seconds;
+    // Conservation monitor: potential energy from the step's own gravity evaluation (on steps that
+    // held the self-gravity field, the last value minus the held forces' work; after a resume into
+    // such a step, one fresh evaluation that changes nothing in the run).
+    if (report.potential_energy_known) {
+      potential = report.potential_energy;
+    } else {
+      if (!potential) potential = gravitational_potential_energy(model, before, run.step.gravity);
+      *potential -= report.work_of_held_field;
+    }
+    row.potential_energy = *potential;
+    row.total_energy = row.kinetic_energy + row.potential_energy;
+    const GrainMomenta momenta = grain_momenta(model, state);
+    row.linear_momentum = momenta.linear;
+    row.angular_momentum = momenta.angular;
+    // A grain that moves further than the alert distance in one step can cross a wall or another
+    // grain between two detections (tunnelling): warned once, with the step and the body.
+    if (!tunnelling_warned && control.progress) {
+      for (std::size_t b = 0; b < model.body_count(); ++b) {
+        if (model.is_fixed(b)) continue;
+        const double travel = h * state.velocity[b].norm();
+        if (travel > alert_distance) {
+          *control.progress << fmt::format(
+              "warning: step {} (t = {:.6g} s): body {} moved {:.3g} m in one step, more than the alert distance "
+              "{:.3g} m; it may pass through walls or grains undetected: lower [time] dt or raise "
+              "[detection] alert_distance\n",
+              state.step, state.time, b, travel, alert_distance);
+          tunnelling_warned = true;
+          break;
+        }
+      }
+    }
     row.stage_seconds = report.stage_seconds;
     file->append_series(row);
 

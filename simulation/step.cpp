@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 namespace rubble {
 namespace {
@@ -25,9 +26,10 @@ class StageTimer {
 };
 
 /// Self-gravity acceleration of every body (zero for fixed bodies): point masses at the grains'
-/// centres of mass (seed 001 sec. 2.3), by direct sum or tree.
-void self_gravity_accelerations(const Model& model, const State& state, const gravity::GravityOptions& options,
-                                std::vector<Vec3>& acceleration_out) {
+/// centres of mass (seed 001 sec. 2.3), by direct sum or tree. Returns the potential energy of the
+/// grains, 1/2 sum m_i phi_i, from the same evaluation.
+double self_gravity_accelerations(const Model& model, const State& state, const gravity::GravityOptions& options,
+                                  std::vector<Vec3>& acceleration_out) {
   std::vector<std::size_t> grains;
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_fixed(b)) grains.push_back(b);
@@ -37,12 +39,25 @@ void self_gravity_accelerations(const Model& model, const State& state, const gr
     for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
     masses[k] = model.mass[grains[k]];
   }
-  std::vector<double> acceleration(3 * grains.size());
-  gravity::compute_field(options, positions, masses, acceleration, {});
+  std::vector<double> acceleration(3 * grains.size()), potential(grains.size());
+  gravity::compute_field(options, positions, masses, acceleration, potential);
   acceleration_out.assign(model.body_count(), Vec3::Zero());
+  double energy = 0.0;
   for (std::size_t k = 0; k < grains.size(); ++k) {
     acceleration_out[grains[k]] = Vec3(acceleration[3 * k], acceleration[3 * k + 1], acceleration[3 * k + 2]);
+    energy += 0.5 * masses[k] * potential[k];
   }
+  return energy;
+}
+
+/// Work of the external forces over the displacement `scale` * `velocity` of every body, J.
+double work_of_forces(const Model& model, const std::vector<Vec3>& force, const std::vector<Vec3>& velocity, double scale) {
+  double work = 0.0;
+  if (velocity.empty()) return work;
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_fixed(b)) work += force[b].dot(velocity[b]);
+  }
+  return scale * work;
 }
 
 /// Stage 2: external forces on every body at the midpoint configuration q_m (gravity; walls get
@@ -53,46 +68,58 @@ void self_gravity_accelerations(const Model& model, const State& state, const gr
 /// Tuckerman et al. 1992) scheme would be second order but needs the field at two times or a
 /// symplectic split). It pays where the field changes slowly against the contact time step: a
 /// cloud's free-fall time is ~1/sqrt(G rho) while h is set by grain travel per step.
-void compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
-                             StepWorkspace& workspace) {
+/// Returns the gravitational potential energy of the grains at q_m, or nothing when a held
+/// self-gravity field was used (it was evaluated at an earlier step).
+std::optional<double> compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
+                                              StepWorkspace& workspace) {
   std::vector<Vec3>& force = workspace.force;
   force.assign(model.body_count(), Vec3::Zero());
+  double potential = 0.0;
   switch (gravity.kind) {
     case GravitySettings::Kind::none:
-      return;
+      return potential;
     case GravitySettings::Kind::uniform:
-      for (std::size_t b = 0; b < model.body_count(); ++b) force[b] = model.mass[b] * gravity.acceleration;
-      return;
+      for (std::size_t b = 0; b < model.body_count(); ++b) {
+        force[b] = model.mass[b] * gravity.acceleration;
+        if (!model.is_fixed(b)) potential -= force[b].dot(state.position[b]);
+      }
+      return potential;
     case GravitySettings::Kind::central:
       for (std::size_t b = 0; b < model.body_count(); ++b) {
-        if (!model.is_fixed(b)) force[b] = model.mass[b] * central_acceleration(gravity.central, state.position[b]);
+        if (model.is_fixed(b)) continue;
+        force[b] = model.mass[b] * central_acceleration(gravity.central, state.position[b]);
+        const double r2 = (state.position[b] - gravity.central.centre).squaredNorm() +
+                          gravity.central.softening * gravity.central.softening;
+        if (r2 > 0.0) potential -= gravity.central.G * gravity.central.mass * model.mass[b] / std::sqrt(r2);
       }
-      return;
+      return potential;
     case GravitySettings::Kind::self: {
       if (gravity.evaluate_every <= 1) {
         // Every step: no field is held (and a checkpoint carries none).
         workspace.held_gravity.clear();
         workspace.held_gravity_step = -1;
         std::vector<Vec3> acceleration;
-        self_gravity_accelerations(model, state, gravity.self_gravity, acceleration);
+        potential = self_gravity_accelerations(model, state, gravity.self_gravity, acceleration);
         for (std::size_t b = 0; b < model.body_count(); ++b) {
           if (!model.is_fixed(b)) force[b] = model.mass[b] * acceleration[b];
         }
-        return;
+        return potential;
       }
       const bool stale = workspace.held_gravity.size() != model.body_count() || workspace.held_gravity_step < 0 ||
                          state.step < workspace.held_gravity_step ||
                          state.step - workspace.held_gravity_step >= gravity.evaluate_every;
+      std::optional<double> evaluated;
       if (stale) {
-        self_gravity_accelerations(model, state, gravity.self_gravity, workspace.held_gravity);
+        evaluated = self_gravity_accelerations(model, state, gravity.self_gravity, workspace.held_gravity);
         workspace.held_gravity_step = state.step;
       }
       for (std::size_t b = 0; b < model.body_count(); ++b) {
         if (!model.is_fixed(b)) force[b] = model.mass[b] * workspace.held_gravity[b];
       }
-      return;
+      return evaluated;
     }
   }
+  return potential;
 }
 
 }  // namespace
@@ -102,6 +129,15 @@ Vec3 central_acceleration(const CentralField& field, const Vec3& position) {
   const double r2 = offset.squaredNorm() + field.softening * field.softening;
   if (!(r2 > 0.0)) return Vec3::Zero();  // at the centre of an unsoftened field: by symmetry, no pull
   return (-field.G * field.mass / (r2 * std::sqrt(r2))) * offset;
+}
+
+double gravitational_potential_energy(const Model& model, const State& state, const GravitySettings& gravity) {
+  if (gravity.kind == GravitySettings::Kind::self) {
+    std::vector<Vec3> unused;
+    return self_gravity_accelerations(model, state, gravity.self_gravity, unused);
+  }
+  StepWorkspace scratch;
+  return compute_external_forces(model, state, gravity, scratch).value_or(0.0);
 }
 
 std::string_view stage_name(Stage stage) {
@@ -132,7 +168,10 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   timer.finish(Stage::drift_to_midpoint);
 
   // 2. external_forces: gravity (uniform, central, or self-gravity, possibly held) at q_m.
-  compute_external_forces(model, state, options.gravity, workspace);
+  const std::optional<double> potential_at_midpoint = compute_external_forces(model, state, options.gravity, workspace);
+  // Work of these forces from q_n to q_m (for the energy monitor when the field is held).
+  const double work_to_midpoint =
+      work_of_forces(model, workspace.force, state.velocity, (1.0 - integrator.theta) * integrator.time_step);
   timer.finish(Stage::external_forces);
 
   // 3. free_velocity: v_free = v_n + h M^-1 f(q_m) (+ implicit gyroscopic term).
@@ -174,6 +213,18 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   timer.finish(Stage::overlap_recovery);
 
   // 9. finish_step: q_{n+1} = q_m + theta h v_{n+1} (+ the recovery's displacement); t += h.
+  // The potential energy at q_{n+1}: that at q_m minus the work of the forces from q_m on (exact
+  // for a uniform field, O(h^2) otherwise, without accumulation); for a held field the work of the
+  // whole step, to be taken from the previous step's value (StepReport::potential_energy).
+  const double work_from_midpoint =
+      work_of_forces(model, workspace.force, workspace.velocity.linear, integrator.theta * integrator.time_step) +
+      work_of_forces(model, workspace.force, workspace.displacement_velocity.linear, integrator.time_step);
+  if (potential_at_midpoint) {
+    report.potential_energy = *potential_at_midpoint - work_from_midpoint;
+  } else {
+    report.potential_energy_known = false;
+    report.work_of_held_field = work_to_midpoint + work_from_midpoint;
+  }
   finish_step(model, integrator, workspace.velocity, workspace.displacement_velocity, state);
   timer.finish(Stage::finish_step);
   return report;

@@ -50,6 +50,11 @@ struct StepOptions {
   GravitySettings gravity{};       ///< external field
 };
 
+/// The grains' gravitational potential energy in the field `gravity` at `state`, J (self-gravity:
+/// 1/2 sum m_i phi_i by the configured direct sum or tree; uniform: -sum m g.x; central mass:
+/// -sum G M m / sqrt(r^2 + eps^2)).
+double gravitational_potential_energy(const Model& model, const State& state, const GravitySettings& gravity);
+
 /// The stages of a step, in execution order (step.cpp), for timing reports.
 enum class Stage { drift_to_midpoint, external_forces, free_velocity, store_impulses, broad_phase, narrow_phase,
                    match_contacts, solver_preparation, nlgs_sweeps, overlap_recovery, finish_step, count };
@@ -61,6 +66,13 @@ struct StepReport {
   std::size_t contacts = 0;          ///< contact points found (gap < alert distance)
   SolverStats solver{};              ///< iterations, residual
   OverlapRecoveryStats overlap{};    ///< overlaps beyond the allowed depth, removed by displacement
+  /// Gravitational potential energy of the grains at the end of the step, J (self-gravity: from
+  /// the step's own evaluation at q_m, carried to q_{n+1} by the forces' work; uniform: -sum m g.x).
+  /// Valid when potential_energy_known; otherwise the field was held (GravitySettings::
+  /// evaluate_every) and the energy is the previous step's minus work_of_held_field.
+  double potential_energy = 0.0;
+  bool potential_energy_known = true;  ///< false on steps that used a held self-gravity field
+  double work_of_held_field = 0.0;     ///< J, work of the held field's forces over the step
   std::array<double, static_cast<std::size_t>(Stage::count)> stage_seconds{};  ///< wall time per stage
 };
 

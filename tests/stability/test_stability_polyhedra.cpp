@@ -91,14 +91,17 @@ struct Stack {
 };
 
 /// `count` cubes of edge `side` touching face to face on a floor through `origin`;
-/// h = 1 ms, tolerance 1e-6, at most 1000 sweeps.
+/// h = 1 ms, tolerance 1e-8, at most 1000 sweeps. A stack's drift is the solver's residual summed
+/// over the steps, since no velocity-level overlap correction pulls it back (the recovery moves
+/// positions only, beyond an allowed depth), and the residual is relative to the impulses, which
+/// grow with the stack's height (nlgs_solver/README.md): the 10-cube tower drifted 2.9e-7 m at 1e-7.
 Stack stack(int count, const Vec3& origin, double side = 0.05) {
   Stack st;
   st.side = side;
   TestScene& s = st.scene;
   s.uniform_gravity(g);
   s.options.integrator.time_step = 1e-3;
-  s.options.solver.tolerance = 1e-6;
+  s.options.solver.tolerance = 1e-8;
   s.options.solver.max_iterations = 1000;
   st.floor = s.plane(origin, Vec3::UnitZ());
   for (int k = 0; k < count; ++k) st.cubes.push_back(add_cube(s, side, origin + Vec3(0, 0, side * (k + 0.5))));
@@ -107,7 +110,7 @@ Stack stack(int count, const Vec3& origin, double side = 0.05) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 1. A stack of 20 cubes (5 cm), mu = 0.5, h = 1 ms, tolerance 1e-6, at most 1000 sweeps.
+// 1. A stack of 20 cubes (5 cm), mu = 0.5, h = 1 ms, tolerance 1e-8, at most 1000 sweeps.
 // Pass: after N = 10^4 steps (10 s) the top cube has moved by less than 1e-6 of the side.
 // Reference: a stack at rest stays at rest. Needs the Newton polish (SolverOptions::polish_after,
 // default 40 sweeps): each face carries four coplanar points whose impulses are not unique and
@@ -215,14 +218,14 @@ TEST(StabilityPolyhedra, HeavyCubeOnLightOnes) {
 
 // ---------------------------------------------------------------------------------------------
 // 4. Overlap recovery: 5 cubes (5 cm) stacked with 25% overlaps (floor-cube and cube-cube),
-// h = 1 ms, tolerance 1e-6. The correction asks each overlapping contact for a separation velocity
-// min(beta (-g) / h, v_max) = min(0.2 x 12.5 mm / 1 ms, v_max) = v_max (nlgs_solver/README.md);
-// the cap is per contact, so along a column the speeds add: cube k leaves at k v_max, and the
-// fastest grain of an n-high column is bounded by n v_max (+ g h). After separating, the cubes fly
-// ballistically (the top one up to (n v_max)^2 / 2g) and land with the predicted-gap activation.
-// Pass: max speed within [n v_max - g h, n v_max + g h]; after 3 s every speed < 1e-6 m/s and
-// every overlap < 1e-3 side. Run with the default cap (1 m/s: measured 5 m/s, at rest by 1.1 s)
-// and a gentle one (0.1 m/s).
+// h = 1 ms. The recovery (nlgs_solver/overlap_recovery.hpp) moves the cubes apart by displacement:
+// beta = 0.2 of each excess overlap per step, at most v_max h per contact per step. No velocity is
+// created, so nothing flies: before, the correction was a separation velocity and the top cube
+// of the column left at n v_max (5 m/s with the default cap, rising 1.3 m).
+// Pass: the grains never move faster than g h (what one step of gravity gives before the floor
+// stops it), after 3 s every speed < 1e-6 m/s and every overlap below the allowed depth
+// (1e-3 of the bounding radius) plus 1e-3 side. Run with the default cap (1 m/s) and a gentle one
+// (0.1 m/s: 1.25 cm of overlap at 0.1 mm a step still goes within 3 s).
 TEST(StabilityPolyhedra, OverlappingStackSeparatesWithoutEjection) {
   for (const double cap : {1.0, 0.1}) {
     Stack st = stack(0, Vec3::Zero());
@@ -240,8 +243,7 @@ TEST(StabilityPolyhedra, OverlappingStackSeparatesWithoutEjection) {
     const double h = s.options.integrator.time_step;
     std::cout << "overlap recovery, cap " << cap << " m/s: max speed " << max_speed << " m/s, final deepest overlap / side "
               << deepest_overlap(s) / side << ", final max speed " << max_grain_speed(s) << " m/s\n";
-    EXPECT_LT(max_speed, n * cap + g * h) << "cap " << cap;
-    EXPECT_GT(max_speed, n * cap - g * h) << "cap " << cap;
+    EXPECT_LT(max_speed, g * h) << "cap " << cap;
     EXPECT_LT(max_grain_speed(s), 1e-6) << "cap " << cap;
     EXPECT_LT(deepest_overlap(s), 1e-3 * side) << "cap " << cap;
   }
@@ -310,7 +312,7 @@ TEST(StabilityPolyhedra, ColumnOfThreeCubesOnAnInclineBelowTheThreshold) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 6. Far from the origin: the 10-cube tower (5 cm, mu = 0.5, h = 1 ms, tolerance 1e-6) with its
+// 6. Far from the origin: the 10-cube tower (5 cm, mu = 0.5, h = 1 ms, tolerance 1e-8) with its
 // floor at (1e5, -1e5, 0) m and at the origin, 5000 steps each. Pass: top drift < 1e-6 side in
 // both, and the final positions relative to the floor agree within 5e-9 m. Reference: the
 // physics is translation invariant; what differs is round-off: the spacing of doubles at 1e5 m is
