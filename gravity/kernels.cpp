@@ -35,15 +35,17 @@ bool cpu_has_avx512() {
   return has;
 }
 
-/// 1/sqrt(x) for x > 0: VRSQRT14PD (relative error < 2^-14), then two Newton steps
-/// y <- y (3/2 - x/2 y^2), each squaring the relative error (~1e-16 after the second).
-__attribute__((target("avx512f"))) inline __m512d rsqrt_newton2(__m512d x) {
+/// 1/sqrt(x) for x > 0: VRSQRT14PD (relative error < 2^-14), then Newton steps
+/// y <- y (3/2 - x/2 y^2), each squaring the relative error and leaving y below 1/sqrt(x):
+/// -(3/2)(2^-14)^2 = -5.6e-9 after one step, ~1e-16 (a few ulps) after two.
+template <int kNewtonSteps>
+__attribute__((target("avx512f"))) inline __m512d rsqrt_newton(__m512d x) {
   const __m512d half_x = _mm512_mul_pd(_mm512_set1_pd(0.5), x);
   const __m512d three_halves = _mm512_set1_pd(1.5);
   // The maskz form: GCC 12's plain _mm512_rsqrt14_pd trips -Wuninitialized (_mm512_undefined_pd).
   __m512d y = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xff), x);
-  y = _mm512_mul_pd(y, _mm512_fnmadd_pd(half_x, _mm512_mul_pd(y, y), three_halves));
-  y = _mm512_mul_pd(y, _mm512_fnmadd_pd(half_x, _mm512_mul_pd(y, y), three_halves));
+  for (int k = 0; k < kNewtonSteps; ++k)
+    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(half_x, _mm512_mul_pd(y, y), three_halves));
   return y;
 }
 
@@ -58,6 +60,7 @@ __attribute__((target("avx512f"))) inline double lane_sum(__m512d v) {
 /// Mask of the first `count` (< 8) lanes.
 inline __mmask8 tail_mask(std::size_t count) { return static_cast<__mmask8>((1u << count) - 1u); }
 
+template <int kNewtonSteps>
 __attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const double* sy,
                                                    const double* sz, const double* sm,
                                                    std::size_t n, double xi, double yi, double zi,
@@ -75,7 +78,7 @@ __attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const doubl
     const __m512d r2 = _mm512_fmadd_pd(dz, dz, _mm512_fmadd_pd(dy, dy, _mm512_fmadd_pd(dx, dx, veps2)));
     // r2 == 0 (the target itself without softening) contributes nothing, like the scalar kernel.
     const __mmask8 valid = _mm512_mask_cmp_pd_mask(live, r2, zero, _CMP_GT_OQ);
-    const __m512d inv = _mm512_maskz_mov_pd(valid, rsqrt_newton2(_mm512_mask_mov_pd(one, valid, r2)));
+    const __m512d inv = _mm512_maskz_mov_pd(valid, rsqrt_newton<kNewtonSteps>(_mm512_mask_mov_pd(one, valid, r2)));
     const __m512d m_inv = _mm512_mul_pd(m, inv);
     const __m512d m_inv3 = _mm512_mul_pd(m_inv, _mm512_mul_pd(inv, inv));
     ax = _mm512_fmadd_pd(dx, m_inv3, ax);
@@ -166,7 +169,15 @@ void m2p_portable(const double* cx, const double* cy, const double* cz, const do
 void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
          double xi, double yi, double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_avx512(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+  if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
+                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 #endif
   p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }

@@ -447,8 +447,8 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
       m2p_total += static_cast<std::uint64_t>(nc) * g.count;
       for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
         detail::Accum acc;
-        detail::p2p(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k],
-                    z_[k], eps2, acc);
+        detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np,
+                                x_[k], y_[k], z_[k], eps2, acc);
         if (nc > 0)
           detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(),
                                  buf.xx.data(), buf.xy.data(), buf.xz.data(), buf.yy.data(),
