@@ -32,8 +32,8 @@ std::string to_string(Backend backend) {
 std::string backend_unavailable_reason(const GravityOptions& options) {
   if (options.backend == Backend::cpu) return {};
   std::string reason;
-  // The GPU Barnes-Hut (issue: "GPU Barnes-Hut gravity") is not written yet: only the direct sum
-  // has a CUDA kernel. Said first, since a GPU would not help.
+  // The GPU Barnes-Hut is not written yet (gravity/README.md): only the direct sum has a CUDA
+  // kernel. Said first, since a GPU would not help.
   if (options.method == Method::tree)
     reason = "the tree method has no CUDA implementation yet (use method direct, or backend cpu)";
   if (!cuda::available()) {

@@ -98,8 +98,8 @@ __attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const doubl
 namespace {
 
 RUBBLE_GRAVITY_CLONES
-void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
-         double xi, double yi, double zi, double eps2, Accum& acc) {
+void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm,
+                  std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
   double ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
   for (std::size_t j = 0; j < n; ++j) {
@@ -125,8 +125,26 @@ void p2p_portable(const double* sx, const double* sy, const double* sz, const do
   acc.phi += phi;
 }
 
+}  // namespace
+
+void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+         double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
+                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
 RUBBLE_GRAVITY_CLONES
-void m2p_portable(const double* cx, const double* cy, const double* cz, const double* cm,
+void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm,
                     const double* qxx, const double* qxy, const double* qxz, const double* qyy,
                     const double* qyz, const double* qzz, std::size_t n, double xi, double yi,
                     double zi, double eps2, Accum& acc) {
@@ -162,31 +180,6 @@ void m2p_portable(const double* cx, const double* cy, const double* cz, const do
   acc.ay += ay;
   acc.az += az;
   acc.phi += phi;
-}
-
-}  // namespace
-
-void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
-         double xi, double yi, double zi, double eps2, Accum& acc) {
-#ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
-#endif
-  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
-}
-
-void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
-                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
-#ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
-#endif
-  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
-}
-
-void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm,
-                    const double* qxx, const double* qxy, const double* qxz, const double* qyy,
-                    const double* qyz, const double* qzz, std::size_t n, double xi, double yi,
-                    double zi, double eps2, Accum& acc) {
-  m2p_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 }  // namespace rubble::gravity::detail
