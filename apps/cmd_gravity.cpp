@@ -1,8 +1,9 @@
-// `rubble gravity IN.h5 [--method tree|direct] [--theta 0.5] [--order 2] [--out OUT.h5] ...`
+// `rubble gravity IN.h5 [--method tree|direct] [--backend cpu|cuda] [--theta 0.5] [--order 2] [--out OUT.h5] ...`
 // Reads `positions` (N x 3) and `masses` (N) from an HDF5 file, computes the self-gravity field
 // with rubble::gravity, optionally writes `accelerations` (N x 3) and `potential` (N) to OUT.h5,
-// and prints one JSON line (N, method, theta, order, threads, build/walk/total seconds).
-// Invalid input -> message on stderr naming the file and the problem, exit code 2.
+// and prints one JSON line (N, method, backend, theta, order, threads, build/walk/total seconds).
+// Invalid input, or a backend that cannot run here (--backend cuda without a GPU), -> message on
+// stderr naming the file or option and the problem, exit code 2.
 
 #include "core/hdf5_io.hpp"
 #include <omp.h>
@@ -27,6 +28,7 @@ struct GravityArguments {
   std::string input;
   std::string output;
   std::string method = "tree";
+  std::string backend = "cpu";
   double theta = 0.5;
   int order = 2;
   double G = 6.674e-11;
@@ -99,6 +101,9 @@ int gravity_command(const GravityArguments& args) {
     if (args.method == "tree") options.method = gravity::Method::tree;
     else if (args.method == "direct") options.method = gravity::Method::direct;
     else throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
+    if (args.backend == "cpu") options.backend = gravity::Backend::cpu;
+    else if (args.backend == "cuda") options.backend = gravity::Backend::cuda;
+    else throw BadInput("--backend must be 'cpu' or 'cuda', got '" + args.backend + "'");
     if (!(args.theta > 0) || !std::isfinite(args.theta))
       throw BadInput("--theta must be a finite number > 0, got " + std::to_string(args.theta));
     if (args.order != 1 && args.order != 2)
@@ -114,6 +119,9 @@ int gravity_command(const GravityArguments& args) {
     if (args.softening > 0) options.softening = {gravity::Softening::Kind::plummer, args.softening};
     if (args.leaf_size > 0) options.leaf_size = args.leaf_size;
     if (args.group_size > 0) options.group_size = args.group_size;
+    // Before the input is read: a backend that cannot run here fails fast, whatever the file.
+    const std::string unavailable = gravity::backend_unavailable_reason(options);
+    if (!unavailable.empty()) throw BadInput("--backend " + args.backend + ": " + unavailable);
 
     // ---- input
     const std::string& in = args.input;
@@ -175,6 +183,7 @@ int gravity_command(const GravityArguments& args) {
     }
     nlohmann::json line = {{"N", n},
                            {"method", gravity::to_string(options.method)},
+                           {"backend", gravity::to_string(options.backend)},
                            {"theta", options.theta},
                            {"order", options.order},
                            {"G", options.G},
@@ -201,6 +210,9 @@ void register_gravity_command(CLI::App& app) {
       "gravity", "Self-gravity of N point masses from an HDF5 file (datasets positions (N,3), masses (N))");
   cmd->add_option("input", args->input, "HDF5 file with datasets 'positions' (N x 3) and 'masses' (N)")->required();
   cmd->add_option("--method", args->method, "tree (Barnes-Hut) or direct (exact O(N^2) sum)")->capture_default_str();
+  cmd->add_option("--backend", args->backend,
+                  "cpu, or cuda (a GPU: method direct only for now; exit 2 where it cannot run)")
+      ->capture_default_str();
   cmd->add_option("--theta", args->theta, "Opening angle of the tree (> 0)")->capture_default_str();
   cmd->add_option("--order", args->order, "Multipole order: 1 monopole, 2 quadrupole")->capture_default_str();
   cmd->add_option("--out", args->output, "Output HDF5 file: datasets 'accelerations' (N x 3), 'potential' (N)");

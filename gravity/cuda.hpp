@@ -1,7 +1,7 @@
 #pragma once
 // Optional CUDA backend of rubble::gravity: the exact direct sum on a GPU, in double precision.
 // The functions always exist; without the backend (no CUDA toolkit at configure time) or without
-// a GPU at run time, available() is false and direct_sum() throws GravityError.
+// a GPU at run time, available() is false and direct_sum() throws BackendUnavailable.
 
 #include <span>
 #include <string>
@@ -24,7 +24,8 @@ std::string unavailable_reason();
 
 /// Exact direct sum on device 0: same conventions and results (up to rounding: the GPU sums each
 /// target in index order with fused multiply-adds) as rubble::gravity::direct_sum(). Throws
-/// GravityError when !available() or on a CUDA error.
+/// BackendUnavailable (a GravityError) when !available(), GravityError on a CUDA error.
+/// compute_field() with Backend::cuda and Method::direct calls it.
 void direct_sum(const GravityOptions& options, std::span<const double> positions,
                 std::span<const double> masses, std::span<double> accelerations,
                 std::span<double> potential);

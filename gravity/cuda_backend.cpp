@@ -24,7 +24,7 @@ void direct_sum(const GravityOptions& options, std::span<const double> positions
   o.method = Method::direct;
   validate(o, positions, masses, accelerations, potential);
   std::string reason;
-  if (detail::device_count(&reason) == 0) throw GravityError("CUDA backend: " + reason);
+  if (detail::device_count(&reason) == 0) throw BackendUnavailable("CUDA backend: " + reason);
   const double eps = options.softening.kind == Softening::Kind::plummer ? options.softening.length : 0.0;
   try {
     detail::direct_sum(positions.data(), masses.data(), masses.size(), eps * eps, options.G,

@@ -11,7 +11,7 @@ std::string unavailable_reason() {
 }
 void direct_sum(const GravityOptions&, std::span<const double>, std::span<const double>,
                 std::span<double>, std::span<double>) {
-  throw GravityError("CUDA backend: " + unavailable_reason());
+  throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }
 
 }  // namespace rubble::gravity::cuda

@@ -21,6 +21,13 @@ enum class Method {
   tree     ///< Barnes-Hut octree with monopole or quadrupole moments, O(N log N)
 };
 
+/// Where the field is computed.
+enum class Backend {
+  cpu,  ///< this library's OpenMP code (always available)
+  cuda  ///< an NVIDIA GPU through the CUDA backend (gravity/cuda/): only when the library was built
+        ///< with it and a GPU is present; today the direct sum only (no GPU tree yet)
+};
+
 /// Softening of the 1/r potential at short range.
 struct Softening {
   /// none: exact Newtonian 1/r. plummer: 1/sqrt(r^2 + length^2) (Plummer 1911; Aarseth 1963).
@@ -33,6 +40,9 @@ struct Softening {
 struct GravityOptions {
   /// Evaluator to use.
   Method method = Method::tree;
+  /// Where to compute it. Backend::cuda throws BackendUnavailable where it cannot run (see
+  /// backend_unavailable_reason()); there is no silent fallback to the CPU.
+  Backend backend = Backend::cpu;
   /// Gravitational constant [m^3 kg^-1 s^-2]; any unit system is used through G.
   double G = 6.674e-11;
   /// Opening angle of the tree: a node is used as a multipole for a group of targets when the
@@ -64,6 +74,20 @@ class GravityError : public std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
+/// Thrown when the requested backend cannot run here: the library was built without it, no GPU is
+/// present, or the method has no implementation on that backend. what() says which.
+class BackendUnavailable : public GravityError {
+ public:
+  using GravityError::GravityError;
+};
+
+/// Why options.backend cannot compute options.method here; empty when it can. Backend::cpu always
+/// can. Cheap enough to call before a run (it asks the CUDA driver for its devices once per call).
+std::string backend_unavailable_reason(const GravityOptions& options);
+
+/// Throws BackendUnavailable("backend cuda: <reason>") when backend_unavailable_reason() is not empty.
+void require_backend(const GravityOptions& options);
+
 /// Checks options and array sizes; throws GravityError with a message naming the problem.
 /// positions: 3N values, masses: N values, accelerations: 3N values, potential: N values or empty.
 void validate(const GravityOptions& options, std::span<const double> positions,
@@ -77,12 +101,16 @@ void validate_particles(const GravityOptions& options, std::span<const double> p
 /// Computes the gravitational acceleration (and optionally the potential) of every particle due to
 /// all others. positions: N*3 contiguous (x0,y0,z0,x1,...), masses: N. Writes accelerations (N*3)
 /// and potential (N; pass an empty span to skip it). Self-interaction is excluded. Results are
-/// bit-identical for any number of OpenMP threads. Throws GravityError on invalid input.
+/// bit-identical for any number of OpenMP threads. Throws GravityError on invalid input and
+/// BackendUnavailable (a GravityError) when options.backend cannot run here.
 FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
                            std::span<const double> masses, std::span<double> accelerations,
                            std::span<double> potential);
 
 /// Human-readable name of a method ("direct", "tree").
 std::string to_string(Method method);
+
+/// Name of a backend ("cpu", "cuda"), as in the scene file and the command line.
+std::string to_string(Backend backend);
 
 }  // namespace rubble::gravity

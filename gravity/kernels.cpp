@@ -11,11 +11,95 @@
 #define RUBBLE_GRAVITY_CLONES
 #endif
 
+// On CPUs with AVX-512, p2p runs a hand-vectorized version instead (p2p_avx512): 1/sqrt(r^2) by
+// the 14-bit estimate VRSQRT14PD refined by two Newton steps (14 -> 28 -> 56 bits: within a few
+// ulps of 1/std::sqrt, so the direct sum stays exact to ~1e-15), in place of a square root and a
+// division, whose throughput bounded the kernel (Zen 4 at 2.6 GHz: 1.1e9 pairs per CPU second
+// with them, 1.3e9 without: the kernel is then bound by its 16 multiply/FMA instructions per 8
+// pairs). m2p_quadrupole keeps the square root and the division: it has ~36 multiply/FMA
+// instructions per 8 cells, which bound it, and the divider runs beside them; a Newton-refined
+// estimate only added to them (measured: no gain). The choice is made once per process from the
+// CPU, so results still depend only on the machine, never on the thread count.
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
+#define RUBBLE_GRAVITY_AVX512 1
+#include <immintrin.h>
+#endif
+
 namespace rubble::gravity::detail {
 
+#ifdef RUBBLE_GRAVITY_AVX512
+namespace {
+
+bool cpu_has_avx512() {
+  static const bool has = __builtin_cpu_supports("avx512f");
+  return has;
+}
+
+/// 1/sqrt(x) for x > 0: VRSQRT14PD (relative error < 2^-14), then Newton steps
+/// y <- y (3/2 - x/2 y^2), each squaring the relative error and leaving y below 1/sqrt(x):
+/// -(3/2)(2^-14)^2 = -5.6e-9 after one step, ~1e-16 (a few ulps) after two.
+template <int kNewtonSteps>
+__attribute__((target("avx512f"))) inline __m512d rsqrt_newton(__m512d x) {
+  const __m512d half_x = _mm512_mul_pd(_mm512_set1_pd(0.5), x);
+  const __m512d three_halves = _mm512_set1_pd(1.5);
+  // The maskz form: GCC 12's plain _mm512_rsqrt14_pd trips -Wuninitialized (_mm512_undefined_pd).
+  __m512d y = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xff), x);
+  for (int k = 0; k < kNewtonSteps; ++k)
+    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(half_x, _mm512_mul_pd(y, y), three_halves));
+  return y;
+}
+
+/// Sum of the 8 lanes in a fixed order (pairs, then pairs of pairs). Through memory: GCC 12's
+/// _mm512_reduce_add_pd trips -Wuninitialized; this runs once per target, not per source.
+__attribute__((target("avx512f"))) inline double lane_sum(__m512d v) {
+  alignas(64) double t[8];
+  _mm512_store_pd(t, v);
+  return ((t[0] + t[1]) + (t[2] + t[3])) + ((t[4] + t[5]) + (t[6] + t[7]));
+}
+
+/// Mask of the first `count` (< 8) lanes.
+inline __mmask8 tail_mask(std::size_t count) { return static_cast<__mmask8>((1u << count) - 1u); }
+
+template <int kNewtonSteps>
+__attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const double* sy,
+                                                   const double* sz, const double* sm,
+                                                   std::size_t n, double xi, double yi, double zi,
+                                                   double eps2, Accum& acc) {
+  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
+  const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
+  __m512d ax = zero, ay = zero, az = zero, phi = zero;
+  // Eight sources per lane group; the last group is masked (absent lanes load mass 0 and r2 = 1).
+  for (std::size_t j = 0; j < n; j += 8) {
+    const __mmask8 live = n - j >= 8 ? static_cast<__mmask8>(0xff) : tail_mask(n - j);
+    const __m512d dx = _mm512_sub_pd(vx, _mm512_maskz_loadu_pd(live, sx + j));
+    const __m512d dy = _mm512_sub_pd(vy, _mm512_maskz_loadu_pd(live, sy + j));
+    const __m512d dz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(live, sz + j));
+    const __m512d m = _mm512_maskz_loadu_pd(live, sm + j);
+    const __m512d r2 = _mm512_fmadd_pd(dz, dz, _mm512_fmadd_pd(dy, dy, _mm512_fmadd_pd(dx, dx, veps2)));
+    // r2 == 0 (the target itself without softening) contributes nothing, like the scalar kernel.
+    const __mmask8 valid = _mm512_mask_cmp_pd_mask(live, r2, zero, _CMP_GT_OQ);
+    const __m512d inv = _mm512_maskz_mov_pd(valid, rsqrt_newton<kNewtonSteps>(_mm512_mask_mov_pd(one, valid, r2)));
+    const __m512d m_inv = _mm512_mul_pd(m, inv);
+    const __m512d m_inv3 = _mm512_mul_pd(m_inv, _mm512_mul_pd(inv, inv));
+    ax = _mm512_fmadd_pd(dx, m_inv3, ax);
+    ay = _mm512_fmadd_pd(dy, m_inv3, ay);
+    az = _mm512_fmadd_pd(dz, m_inv3, az);
+    phi = _mm512_add_pd(phi, m_inv);
+  }
+  acc.ax += lane_sum(ax);
+  acc.ay += lane_sum(ay);
+  acc.az += lane_sum(az);
+  acc.phi += lane_sum(phi);
+}
+
+}  // namespace
+#endif
+
+namespace {
+
 RUBBLE_GRAVITY_CLONES
-void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
-         double xi, double yi, double zi, double eps2, Accum& acc) {
+void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm,
+                  std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
   double ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
   for (std::size_t j = 0; j < n; ++j) {
@@ -39,6 +123,24 @@ void p2p(const double* sx, const double* sy, const double* sz, const double* sm,
   acc.ay += ay;
   acc.az += az;
   acc.phi += phi;
+}
+
+}  // namespace
+
+void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+         double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
+                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
 RUBBLE_GRAVITY_CLONES

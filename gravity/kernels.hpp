@@ -23,6 +23,13 @@ struct Accum {
 void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
          double xi, double yi, double zi, double eps2, Accum& acc);
 
+/// p2p for the tree: each term may be smaller than p2p's by a relative 1.7e-8 at most (on AVX-512
+/// CPUs 1/sqrt(r^2) takes one Newton step instead of two; elsewhere it is p2p). The tree's own
+/// error is >= 1e-6 at any practical theta, so this changes no quoted tree error, and it saves
+/// 3 of the 16 multiply/FMA instructions per 8 pairs that bound the kernel.
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
+                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc);
+
 /// Quadrupole cell-particle: adds the field of n cells, each with mass m, centre of mass c and
 /// second moment M_ab = sum_k m_k (y_k - c)_a (y_k - c)_b (not trace-free, so that the softened
 /// kernel 1/sqrt(r^2 + eps2) is expanded exactly to second order). With D = (r^2 + eps2)^{-1/2},

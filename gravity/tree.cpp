@@ -35,8 +35,14 @@ constexpr double kCells = static_cast<double>(1u << kBitsPerAxis);
 // b_max is rounded up by a few ulps so that a node containing a target can never pass the
 // (strict) acceptance test through rounding, even with theta >= 1.
 constexpr double kBmaxSafety = 1.0 + 1e-12;
-// Below this many particles the OpenMP loops run on the calling thread only (same results).
-constexpr std::size_t kParallelMin = 2048;
+// Below these sizes the OpenMP loops run on the calling thread only (same results: the threads
+// never change the order of any sum). A parallel region costs a team wake-up and a barrier, ~10 us
+// on an idle machine but milliseconds of spinning CPU on a loaded one, where the other thread is
+// not scheduled at once: at N = 10^4 (walk ~14 ms of CPU) two threads used 2-3x the CPU of one and
+// were slower in wall time too on the shared 2-core machine (bench/RESULTS.md, "Gravity"). The key
+// loop is ~10 ns a particle: threads only pay off for very large N.
+constexpr std::size_t kParallelWalkMin = std::size_t{1} << 14;  // 16 384 targets
+constexpr std::size_t kParallelKeysMin = std::size_t{1} << 18;  // 262 144 particles
 
 /// Stable LSD radix sort of (key, index) pairs on 8-bit digits. Stable + keys computed from the
 /// positions only => the order does not depend on anything but the input (determinism).
@@ -131,8 +137,7 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
   const double scale = extent > 0 ? kCells / extent : 0.0;
   std::vector<std::uint64_t> keys(n);
   const auto sn = static_cast<std::ptrdiff_t>(n);
-  // Threads only pay off beyond a few thousand particles (waking a team costs ~10 us or more).
-#pragma omp parallel for schedule(static) if (n >= kParallelMin)
+#pragma omp parallel for schedule(static) if (n >= kParallelKeysMin)
   for (std::ptrdiff_t s = 0; s < sn; ++s) {
     const auto i = static_cast<std::size_t>(s);
     std::uint64_t key = 0;
@@ -387,7 +392,7 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   const bool with_potential = !potential.empty();
   std::uint64_t p2p_total = 0, m2p_total = 0;
 
-#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelMin)
+#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelWalkMin)
   {
     GroupBuffers buf;
     auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
@@ -442,8 +447,8 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
       m2p_total += static_cast<std::uint64_t>(nc) * g.count;
       for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
         detail::Accum acc;
-        detail::p2p(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k],
-                    z_[k], eps2, acc);
+        detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np,
+                                x_[k], y_[k], z_[k], eps2, acc);
         if (nc > 0)
           detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(),
                                  buf.xx.data(), buf.xy.data(), buf.xz.data(), buf.yy.data(),

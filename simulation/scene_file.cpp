@@ -612,10 +612,11 @@ class SceneParser {
     } else {
       const bool tree = type == "tree";
       if (tree) {
-        table->allow_only({"type", "G", "softening", "theta", "order", "leaf_size", "group_size", "evaluate_every"},
-                          "for [gravity] type = \"tree\"");
+        table->allow_only(
+            {"type", "G", "softening", "theta", "order", "leaf_size", "group_size", "evaluate_every", "backend"},
+            "for [gravity] type = \"tree\"");
       } else {
-        table->allow_only({"type", "G", "softening", "evaluate_every"}, "for [gravity] type = \"direct\"");
+        table->allow_only({"type", "G", "softening", "evaluate_every", "backend"}, "for [gravity] type = \"direct\"");
       }
       // Held field between evaluations (step.cpp); capped so a typo cannot freeze gravity for a run.
       gravity.evaluate_every = static_cast<int>(table->integer_or("evaluate_every", 1, 1, 1'000'000));
@@ -631,6 +632,12 @@ class SceneParser {
         self.order = static_cast<int>(table->integer_or("order", self.order, 1, 2));
         self.leaf_size = static_cast<int>(table->integer_or("leaf_size", self.leaf_size, 1, 1'000'000));
         self.group_size = static_cast<int>(table->integer_or("group_size", self.group_size, 1, 1'000'000));
+      }
+      // A GPU backend that cannot run here is refused now, at its line, not at the first step.
+      if (table->optional_choice("backend", {"cpu", "cuda"}).value_or("cpu") == "cuda") {
+        self.backend = gravity::Backend::cuda;
+        const std::string reason = gravity::backend_unavailable_reason(self);
+        if (!reason.empty()) table->fail_key("backend", "\"cuda\" cannot run here: " + reason);
       }
     }
   }
@@ -1472,6 +1479,7 @@ std::string scene_to_toml(const Scene& scene) {
         out << "leaf_size = " << self.leaf_size << "\n";
         out << "group_size = " << self.group_size << "\n";
       }
+      if (self.backend != gravity::Backend::cpu) out << "backend = \"" << gravity::to_string(self.backend) << "\"\n";
       if (gravity.evaluate_every != 1) out << "evaluate_every = " << gravity.evaluate_every << "\n";
       out << "\n";
       break;

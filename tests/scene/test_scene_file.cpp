@@ -211,10 +211,59 @@ distribution = "uniform_volume_fraction"
   EXPECT_EQ(g.self_gravity.softening.length, 0.1);
   EXPECT_EQ(g.self_gravity.leaf_size, 8);
   EXPECT_EQ(g.self_gravity.group_size, 32);
+  EXPECT_EQ(g.self_gravity.backend, gravity::Backend::cpu);
   ASSERT_EQ(tree.model.body_count(), 27u);
   // Default cubic-grid cell = 2 radius_max = 1 m, centred on the origin: every grain in [-1.5, 1.5]^3.
   for (std::size_t i = 0; i < 27; ++i) {
     EXPECT_LE(tree.state.position[i].cwiseAbs().maxCoeff() + tree.model.sphere_radius(i), 1.5 + 1e-12);
+  }
+}
+
+TEST(ParseScene, GravityBackendIsRefusedAtItsLineWhereItCannotRun) {
+  const auto scene_with = [](const std::string& backend) {
+    return std::string(R"(
+[time]
+dt = 1
+end_time = 100
+[[materials]]
+name = "m"
+density = 1
+[[contact_laws]]
+materials = ["m", "m"]
+friction = 0
+[[bodies]]
+shape = "sphere"
+radius = 0.5
+position = [0.0, 0.0, 0.0]
+[[bodies]]
+shape = "sphere"
+radius = 0.5
+position = [2.0, 0.0, 0.0]
+[gravity]
+type = "direct"
+backend = ")") + backend + "\"\n";
+  };
+  const Scene cpu = parse_scene(scene_with("cpu"), "cpu.toml");
+  EXPECT_EQ(cpu.run.step.gravity.self_gravity.backend, gravity::Backend::cpu);
+  EXPECT_EQ(scene_to_toml(cpu).find("backend"), std::string::npos) << "the default backend is not written";
+
+  gravity::GravityOptions direct_on_gpu;
+  direct_on_gpu.method = gravity::Method::direct;
+  direct_on_gpu.backend = gravity::Backend::cuda;
+  const std::string reason = gravity::backend_unavailable_reason(direct_on_gpu);
+  if (reason.empty()) {  // a GPU machine: the scene runs there and round-trips
+    const Scene gpu = parse_scene(scene_with("cuda"), "gpu.toml");
+    EXPECT_EQ(gpu.run.step.gravity.self_gravity.backend, gravity::Backend::cuda);
+    EXPECT_NE(scene_to_toml(gpu).find("backend = \"cuda\""), std::string::npos);
+    return;
+  }
+  try {
+    parse_scene(scene_with("cuda"), "gpu.toml");
+    FAIL() << "backend = \"cuda\" was accepted where it cannot run: " << reason;
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.key, "gravity.backend");
+    EXPECT_EQ(error.line, 21);
+    EXPECT_NE(std::string(error.what()).find(reason), std::string::npos) << error.what();
   }
 }
 
