@@ -2,7 +2,8 @@
 """Plots of `rubble post` (called by the C++ command; run with /usr/bin/python3, matplotlib).
 
     plots.py run DIR    reads DIR/series.csv, DIR/metrics.csv, DIR/impulse_distribution.csv and
-                        writes kinetic_energy.png, coordination.png, packing_fraction.png,
+                        writes kinetic_energy.png, conservation.png (when the series has the
+                        conservation monitor), coordination.png, packing_fraction.png,
                         aggregate_diameter.png, impulse_distribution.png
     plots.py study DIR  reads DIR/study.csv and writes the comparison plots of seed 001 figs 3-4:
                         study_coordination_vs_ns.png, study_diameter_vs_ns.png (log-log),
@@ -13,6 +14,7 @@
 Columns are described in docs/postprocessing.md. Exits non-zero with a message on bad input.
 """
 import csv
+import math
 import os
 import sys
 
@@ -53,6 +55,31 @@ def time_axis(times):
     return list(times), "t (s)"
 
 
+def conservation_plot(series, path):
+    """The run's conservation monitor: energies (J) and the drift of the momenta relative to their
+    largest magnitude during the run (a contact-free system under self-gravity keeps all three)."""
+    t, label = time_axis(series.get("time", []))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+    for key, name in (("kinetic_energy", "kinetic"), ("potential_energy", "potential"), ("total_energy", "total")):
+        top.plot(t, series.get(key, []), lw=1, label=name)
+    top.set_ylabel("energy (J)")
+    top.set_title("Conservation monitor")
+    top.legend()
+    for prefix, name in (("linear_momentum", "linear momentum"), ("angular_momentum", "angular momentum (about the centre of mass)")):
+        columns = [series.get(f"{prefix}_{c}", []) for c in "xyz"]
+        if not all(columns):
+            continue
+        norms = [math.sqrt(x * x + y * y + z * z) for x, y, z in zip(*columns)]
+        scale = max(norms) if norms and max(norms) > 0 else 1.0
+        drift = [math.sqrt((x - columns[0][0]) ** 2 + (y - columns[1][0]) ** 2 + (z - columns[2][0]) ** 2) / scale
+                 for x, y, z in zip(*columns)]
+        bottom.plot(t, drift, lw=1, label=name)
+    bottom.set_xlabel(label)
+    bottom.set_ylabel("|change| / largest |value|")
+    bottom.legend(fontsize=8)
+    save(fig, path)
+
+
 def run_plots(directory):
     series, _ = read_csv(os.path.join(directory, "series.csv"))
     metrics, snapshots = read_csv(os.path.join(directory, "metrics.csv"))
@@ -69,6 +96,9 @@ def run_plots(directory):
     ax.set_ylabel(r"$\langle E_c \rangle$ (J per grain)")
     ax.set_title("Mean kinetic energy")
     save(fig, os.path.join(directory, "kinetic_energy.png"))
+
+    if series.get("total_energy"):
+        conservation_plot(series, os.path.join(directory, "conservation.png"))
 
     t, label = time_axis(metrics.get("time", []))
     fig, ax = plt.subplots(figsize=(6, 4))

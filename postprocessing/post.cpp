@@ -131,13 +131,17 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   const RunSeries series = reader.read_series();
   {
     const fs::path path = out / "series.csv";
-    CsvWriter csv(path, {"step", "time", "kinetic_energy", "mean_kinetic_energy", "contacts", "active_contacts",
-                         "iterations", "residual", "wall_seconds"});
+    std::vector<std::string> header{"step",           "time",       "kinetic_energy", "mean_kinetic_energy", "contacts",
+                                    "active_contacts", "iterations", "residual",       "wall_seconds"};
+    header.insert(header.end(), series.monitor_names.begin(), series.monitor_names.end());
+    CsvWriter csv(path, header);
     for (std::size_t k = 0; k < series.step.size(); ++k) {
-      csv.row({static_cast<double>(series.step[k]), series.time[k], series.kinetic_energy[k],
-               grains > 0 ? series.kinetic_energy[k] / static_cast<double>(grains) : 0.0,
-               static_cast<double>(series.contacts[k]), static_cast<double>(series.active_contacts[k]),
-               static_cast<double>(series.iterations[k]), series.residual[k], series.wall_seconds[k]});
+      std::vector<double> row{static_cast<double>(series.step[k]), series.time[k], series.kinetic_energy[k],
+                              grains > 0 ? series.kinetic_energy[k] / static_cast<double>(grains) : 0.0,
+                              static_cast<double>(series.contacts[k]), static_cast<double>(series.active_contacts[k]),
+                              static_cast<double>(series.iterations[k]), series.residual[k], series.wall_seconds[k]};
+      for (const std::vector<double>& column : series.monitor) row.push_back(column[k]);
+      csv.row(row);
     }
     csv.close();
     written.push_back(path);

@@ -289,6 +289,13 @@ RunSeries RunReader::read_series() const {
   series.iterations = read_int_column(g, "iterations", rows, r.path);
   series.residual = read_column(g, "residual", rows, r.path);
   series.wall_seconds = read_column(g, "wall_seconds", rows, r.path);
+  const std::vector<std::string> present = hdf5::link_names(g, r.path);
+  for (const char* name : {"potential_energy", "total_energy", "linear_momentum_x", "linear_momentum_y",
+                           "linear_momentum_z", "angular_momentum_x", "angular_momentum_y", "angular_momentum_z"}) {
+    if (std::find(present.begin(), present.end(), name) == present.end()) continue;
+    series.monitor_names.emplace_back(name);
+    series.monitor.push_back(read_column(g, name, rows, r.path));
+  }
   Handle stages = hdf5::open_group(g, "stage_seconds", r.path);
   series.stage_names = hdf5::link_names(stages.get(), r.path);
   for (const std::string& name : series.stage_names) series.stage_seconds.push_back(read_column(stages.get(), name, rows, r.path));

@@ -24,6 +24,11 @@ struct RunSeries {
   std::vector<std::int64_t> iterations;       ///< NLGS sweeps
   std::vector<double> residual;               ///< NLGS residual at exit
   std::vector<double> wall_seconds;           ///< s, wall time per step
+  /// The conservation monitor's columns present in the file (potential_energy, total_energy,
+  /// linear_momentum_x/y/z, angular_momentum_x/y/z; docs/output-format.md), by name; none in run
+  /// files written before 2026-11-24.
+  std::vector<std::string> monitor_names;
+  std::vector<std::vector<double>> monitor;   ///< one column per monitor name
   std::vector<std::string> stage_names;       ///< names of the stage columns, in step order
   std::vector<std::vector<double>> stage_seconds;  ///< s, one column per stage name
 };
