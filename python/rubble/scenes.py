@@ -93,6 +93,8 @@ def toml_text(scene):
                     table(item, f"{prefix}{k}.")
 
     table(scene, "")
+    while lines and not lines[0]:
+        lines.pop(0)
     return "\n".join(lines) + "\n"
 
 

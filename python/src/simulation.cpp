@@ -1,5 +1,6 @@
 #include "simulation.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
@@ -176,6 +177,8 @@ std::filesystem::path Simulation::record_path() const { return record_ ? record_
 
 std::filesystem::path Simulation::save_checkpoint(const std::filesystem::path& folder, int keep) {
   if (keep < 1) throw std::invalid_argument(fmt::format("keep: expected >= 1, got {}", keep));
+  // The run's end step as the checkpoint format checks it (step within [first_step, end_step]).
+  progress_.end_step = std::max(progress_.end_step, state_.step + steps_to(scene_.run.end_time));
   if (record_) {
     record_->flush();  // as the run loop: the checkpoint never promises rows that are not on disk
     progress_.series_rows = record_->series_rows();
