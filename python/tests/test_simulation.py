@@ -143,7 +143,7 @@ def test_ctrl_c_stops_a_run_between_two_steps():
 
 
 def test_steps_release_the_gil():
-    # While one C++ call takes 3000 steps in a thread, this thread keeps running Python and sees
+    # While one C++ call takes 3000 steps (about 0.3 s) in a thread, this thread keeps running Python and sees
     # the step count move: impossible if the GIL were held for the whole call.
     sim = rubble.Simulation(rubble.load_scene(os.path.join(os.path.dirname(__file__), "..", "..", "tests",
                                                            "postprocessing", "tiny_deposit.toml")))
@@ -152,12 +152,13 @@ def test_steps_release_the_gil():
     seen = set()
     while worker.is_alive():
         seen.add(sim.step_count)
+        time.sleep(1e-4)  # hands the GIL back at once (a busy loop would make the worker wait 5 ms a step)
     worker.join()
     assert sim.step_count == 3000
     assert len(seen) > 3, seen
     with pytest.raises(RuntimeError, match="another thread"):
         def step_twice():
-            t = threading.Thread(target=sim.step, args=(20000,))
+            t = threading.Thread(target=sim.step, args=(1000,))
             t.start()
             try:
                 while sim.step_count == 3000:
