@@ -162,3 +162,23 @@ def test_vtk_series_and_post_process(tmp_path, tiny_deposit):
     sim.close()
     files = rubble.post.process(tmp_path / "run" / "run.h5", tmp_path / "post", plots=False)
     assert any(f.endswith(".csv") for f in files)
+
+
+def test_scene_from_dict_with_generators_and_contact_laws():
+    scene = rubble.scene_from_dict({
+        "name": "grid", "seed": 4,
+        "time": {"dt": "auto", "end_time": 100.0},
+        "gravity": {"type": "direct"},
+        "materials": [{"name": "rock", "density": 3000.0}, {"name": "ice", "density": 900.0}],
+        "contact_laws": [{"materials": ["rock", "rock"], "friction": 0.6, "restitution": 0.1},
+                         {"materials": ["rock", "ice"], "friction": 0.2},
+                         {"materials": ["ice", "ice"], "friction": 0.05}],
+        "generators": [{"type": "cubic_grid", "cells_per_side": 3, "cell_size": 2.0, "radius_min": 0.5,
+                        "radius_max": 0.8, "material": "ice"}],
+    })
+    assert scene.grain_count == 27 and scene.gravity == "self"
+    assert set(scene.material_ids) == {1}
+    sim = rubble.Simulation(scene)
+    assert sim.contact_law("rock", "rock") == {"friction": 0.6, "restitution": 0.1}
+    assert sim.contact_law("ice", "rock")["friction"] == 0.2
+    assert sim.contact_law(1, 1)["friction"] == 0.05
