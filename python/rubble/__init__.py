@@ -29,9 +29,10 @@ from ._rubble import (  # noqa: F401  (re-exported)
 from . import fclib, gravity, post, quaternion  # noqa: F401
 from .scenes import pack, scene_from_dict, toml_text  # noqa: F401
 
-#: Names of the stages of a step, in order (keys of Simulation.stage_seconds).
-STAGES = ("external_forces", "free_velocity", "broad_phase", "narrow_phase", "match_contacts",
-          "solver_preparation", "nlgs_sweeps", "update_positions")
+from ._rubble import _stage_names
+
+#: Names of the stages of a step, in execution order (keys of Simulation.stage_seconds).
+STAGES = tuple(_stage_names())
 
 #: Contact status codes of Simulation.contacts()["status"].
 CONTACT_STATUS = {0: "open", 1: "sticking", 2: "sliding"}

@@ -162,6 +162,14 @@ double* first(std::vector<Quat>& values) { return values.empty() ? nullptr : val
 }  // namespace
 
 void bind_simulation(py::module_& m) {
+  m.def(
+      "_stage_names",
+      [] {
+        std::vector<std::string> names;
+        for (std::size_t s = 0; s < stage_count; ++s) names.emplace_back(stage_name(static_cast<Stage>(s)));
+        return names;
+      },
+      "The stages of a step, in execution order (simulation/step.hpp)");
   py::class_<Simulation> cls(m, "Simulation", R"doc(
 A scene being stepped: rubble.Simulation(scene).
 

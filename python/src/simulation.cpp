@@ -94,16 +94,39 @@ Simulation Simulation::branch() const {
   return copy;
 }
 
-const StepReport& Simulation::advance() {
-  const auto start = std::chrono::steady_clock::now();
-  last_report_ = step(scene_.model, state_, workspace_, scene_.run.step);
-  const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  for (std::size_t b = 0; b < state_.body_count(); ++b) {
-    if (!state_.position[b].allFinite() || !state_.orientation[b].coeffs().allFinite() ||
-        !state_.velocity[b].allFinite() || !state_.angular_velocity[b].allFinite()) {
-      throw NumericalFailure(fmt::format("step {} (t = {:.6g} s): body {}: non-finite position, orientation or velocity",
-                                         state_.step, state_.time, b));
+namespace {
+
+/// The first body whose position, orientation or velocity is not finite (body_count() if none).
+std::size_t first_non_finite_body(const State& state) {
+  for (std::size_t b = 0; b < state.body_count(); ++b) {
+    if (!state.position[b].allFinite() || !state.orientation[b].coeffs().allFinite() ||
+        !state.velocity[b].allFinite() || !state.angular_velocity[b].allFinite()) {
+      return b;
     }
+  }
+  return state.body_count();
+}
+
+}  // namespace
+
+const StepReport& Simulation::advance() {
+  // The run loop's conservation monitor starts from the potential energy before a step that
+  // holds the self-gravity field (run.cpp): evaluated here, before the state moves on.
+  if (record_ && !potential_energy_ && scene_.run.step.gravity.evaluate_every > 1) {
+    potential_energy_ = gravitational_potential_energy(scene_.model, state_, scene_.run.step.gravity);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    last_report_ = step(scene_.model, state_, workspace_, scene_.run.step);
+  } catch (const std::runtime_error&) {
+    // As run_scene: a non-finite state makes detection refuse the midpoint configuration; report
+    // it as the end-of-step check below would.
+    if (first_non_finite_body(state_) == state_.body_count()) throw;
+  }
+  const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (const std::size_t b = first_non_finite_body(state_); b < state_.body_count()) {
+    throw NumericalFailure(fmt::format("step {} (t = {:.6g} s): body {}: non-finite position, orientation or velocity",
+                                       state_.step, state_.time, b));
   }
   for (std::size_t s = 0; s < stage_count; ++s) total_stage_seconds_[s] += last_report_.stage_seconds[s];
   progress_.iteration_sum += last_report_.solver.iterations;
@@ -126,6 +149,17 @@ const StepReport& Simulation::advance() {
     row.iterations = last_report_.solver.iterations;
     row.residual = last_report_.solver.residual;
     row.wall_seconds = step_seconds;
+    // The conservation monitor's columns, as run_scene fills them.
+    if (last_report_.potential_energy_known) {
+      potential_energy_ = last_report_.potential_energy;
+    } else {
+      *potential_energy_ -= last_report_.work_of_held_field;
+    }
+    row.potential_energy = *potential_energy_;
+    row.total_energy = row.kinetic_energy + row.potential_energy;
+    const GrainMomenta momenta = grain_momenta(scene_.model, state_);
+    row.linear_momentum = momenta.linear;
+    row.angular_momentum = momenta.angular;
     row.stage_seconds = last_report_.stage_seconds;
     record_->append_series(row);
     if ((state_.step - record_first_step_) % snapshot_period_ == 0 || at_rest_) write_snapshot();
@@ -154,6 +188,7 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
     snapshot_period_ = std::max<std::int64_t>(1, steps_to(end_time) / 100);
   }
   progress_.first_step = state_.step;
+  potential_energy_.reset();  // the run loop's monitor starts afresh with the file
   progress_.snapshot_period = snapshot_period_;
   progress_.end_step = state_.step + steps_to(end_time);
   last_snapshot_step_ = -1;

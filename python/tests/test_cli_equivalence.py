@@ -61,7 +61,8 @@ def test_recorded_run_file_matches_the_cli_run_file(rubble_exe, tiny_deposit, tm
     sim.close()
     with h5py.File(tmp_path / "cli" / "run.h5") as cli, h5py.File(tmp_path / "py" / "run.h5") as py:
         assert cli["scene"][()] == py["scene"][()]
-        for column in ("step", "time", "kinetic_energy", "contacts", "iterations", "residual"):
+        for column in ("step", "time", "kinetic_energy", "contacts", "active_contacts", "iterations", "residual",
+                       "potential_energy", "total_energy", "linear_momentum_z", "angular_momentum_x"):
             np.testing.assert_array_equal(cli["series"][column][:], py["series"][column][:])
         assert sorted(cli["snapshots"].keys()) == sorted(py["snapshots"].keys())
         last = sorted(cli["snapshots"].keys())[-1]
@@ -169,3 +170,24 @@ def test_scene_errors_carry_the_cli_message(rubble_exe, source_dir):
             assert error.value.line == int(line.group(1)), path
         assert error.value.file == path
         assert str(error.value).endswith(error.value.message)
+
+
+def test_held_self_gravity_run_file_matches_the_cli(rubble_exe, tmp_path):
+    # Self-gravity evaluated every 3 steps: the run file's potential energy on the held steps is
+    # the last value minus the held forces' work, as `rubble run` writes it.
+    text = rubble.default_scene().text
+    text = re.sub(r"cells_per_side = \d+", "cells_per_side = 3", text)
+    text = text.replace('[gravity]\ntype = "tree"', '[gravity]\ntype = "tree"\nevaluate_every = 3')
+    assert "evaluate_every = 3" in text
+    path = tmp_path / "held.toml"
+    path.write_text(text)
+    out = run_cli(rubble_exe, "run", path, "--out", tmp_path / "cli", "--end-time", 100 * rubble.load_scene(path).dt,
+                  "-q")
+    _, cli_hash = cli_final_hash(out.stdout)
+    sim = rubble.Simulation(rubble.load_scene(path))
+    sim.record(tmp_path / "py", end_time=100 * sim.dt)
+    sim.run(until=100 * sim.dt)
+    sim.close()
+    assert sim.state_hash() == cli_hash
+    with h5py.File(tmp_path / "cli" / "run.h5") as cli, h5py.File(tmp_path / "py" / "run.h5") as py:
+        np.testing.assert_array_equal(cli["series"]["potential_energy"][:], py["series"]["potential_energy"][:])

@@ -11,14 +11,17 @@ def test_gravity_of_two_masses_is_newtons_law():
     x = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
     m = np.array([2.0, 5.0])
     G = 1.0
+    # The kernels refine an approximate 1/sqrt(r^2) by Newton steps: within 1.7e-8 of exact
+    # (gravity/README.md); 2e-8 relative here.
+    tol = 2e-8
     for method in ("direct", "tree"):
         a, phi = rubble.gravity.field(x, m, method=method, G=G, potential=True)
-        np.testing.assert_allclose(a[0], G * 5.0 / 25.0 * np.array([0.6, 0.8, 0.0]), rtol=1e-14)
-        np.testing.assert_allclose(a[1], -G * 2.0 / 25.0 * np.array([0.6, 0.8, 0.0]), rtol=1e-14)
-        np.testing.assert_allclose(phi, [-G * 5.0 / 5.0, -G * 2.0 / 5.0], rtol=1e-14)
+        np.testing.assert_allclose(a[0], G * 5.0 / 25.0 * np.array([0.6, 0.8, 0.0]), rtol=tol, atol=1e-20)
+        np.testing.assert_allclose(a[1], -G * 2.0 / 25.0 * np.array([0.6, 0.8, 0.0]), rtol=tol, atol=1e-20)
+        np.testing.assert_allclose(phi, [-G * 5.0 / 5.0, -G * 2.0 / 5.0], rtol=tol)
     # Plummer softening: 1 / (r^2 + eps^2)^(3/2)
     a = rubble.gravity.field(x, m, method="direct", G=G, softening=1.0)
-    np.testing.assert_allclose(np.linalg.norm(a[0]), 5.0 * 5.0 / 26.0 ** 1.5, rtol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(a[0]), 5.0 * 5.0 / 26.0 ** 1.5, rtol=tol)
 
 
 def test_tree_agrees_with_the_direct_sum():
