@@ -5,7 +5,8 @@
 //
 // The scene is written with a generator entry and the seed, so the file is small and the grains
 // are reproducible from it; --explicit expands every grain instead (scene_to_toml). Either way
-// the text is parsed back before it is written, so a file `rubble pack` writes always runs.
+// the text is parsed back before it is written, so a file `rubble pack` writes always runs. The
+// text itself comes from simulation/pack_scene.hpp, shared with the Python module (rubble.pack).
 #include <array>
 #include <cmath>
 #include <fmt/format.h>
@@ -18,35 +19,15 @@
 
 #include "apps/commands.hpp"
 #include "core/units.hpp"
-#include "preprocessing/packing.hpp"
+#include "simulation/pack_scene.hpp"
 #include "simulation/scene_file.hpp"
 
 namespace rubble::apps {
 namespace {
 
-/// The command line of `rubble pack`.
-struct PackArguments {
-  std::string kind;                      ///< cubic-grid, cloud or box
-  std::uint64_t count = 1000;            ///< --n
-  std::string shape = "spheres";         ///< spheres, polyhedra or mix
-  double polyhedron_fraction = 0.5;      ///< --polyhedron-fraction (mix)
-  double d_min = 7.5;                    ///< m
-  double d_max = 10.0;                   ///< m
-  std::string distribution = "volume-fraction";  ///< volume-fraction, uniform, monodisperse, bins
-  std::string bins;                      ///< "d:f,d:f,..."
-  std::string bin_fractions = "volume";  ///< volume or number
-  double density = 5164.0;               ///< kg/m^3
-  double friction = 0.0;                 ///< mu
-  double restitution = 0.0;              ///< e_n
-  std::uint64_t seed = 1;
-  double volume_fraction = 0.1;          ///< cloud: grain volume / ball volume
-  double cloud_radius = 0.0;             ///< cloud: m, overrides volume_fraction
-  double box_width = 0.0;                ///< box: m, 0 = 10 d_max
-  double g = units::standard_gravity;    ///< box: m/s^2
-  double end_time = 0.0;                 ///< s, 0 = automatic
-  std::string name;                      ///< scene name
-  std::string output = "-";              ///< -o, "-" = standard output
-  bool explicit_grains = false;          ///< --explicit
+/// The command line of `rubble pack`: the scene's options and where to write it.
+struct PackArguments : PackOptions {
+  std::string output = "-";  ///< -o, "-" = standard output
 };
 
 int bad_input(const std::string& message) {
@@ -54,128 +35,10 @@ int bad_input(const std::string& message) {
   return exit_bad_input;
 }
 
-std::string number(double x) { return fmt::format("{}", x); }
-
-/// The size keys of a generator from the arguments.
-std::string size_keys(const PackArguments& a) {
-  if (a.distribution == "monodisperse") {
-    return fmt::format("distribution = \"monodisperse\"\nradius = {}\n", number(0.5 * a.d_max));
-  }
-  if (a.distribution == "bins") {
-    std::string list;
-    std::stringstream in(a.bins);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-      const auto colon = item.find(':');
-      if (colon == std::string::npos) throw std::invalid_argument("--bins: expected DIAMETER:FRACTION pairs, got \"" + item + "\"");
-      std::size_t used = 0;
-      const double d = std::stod(item.substr(0, colon), &used);
-      const double f = std::stod(item.substr(colon + 1));
-      list += fmt::format("{}[{}, {}]", list.empty() ? "" : ", ", number(d), number(f));
-    }
-    if (list.empty()) throw std::invalid_argument("--bins: expected DIAMETER:FRACTION pairs, e.g. 8:0.5,10:0.5");
-    return fmt::format("distribution = \"bins\"\nbins = [{}]\nbin_fractions = \"{}\"\n", list, a.bin_fractions);
-  }
-  return fmt::format("distribution = \"{}\"\nradius_min = {}\nradius_max = {}\n",
-                     a.distribution == "uniform" ? "uniform_radius" : "uniform_volume_fraction", number(0.5 * a.d_min),
-                     number(0.5 * a.d_max));
-}
-
-std::string shape_keys(const PackArguments& a) {
-  if (a.shape == "polyhedra") return "shape = \"polyhedron\"\n";
-  if (a.shape == "mix") return fmt::format("shape = \"mix\"\npolyhedron_fraction = {}\n", number(a.polyhedron_fraction));
-  return "shape = \"sphere\"\n";
-}
-
-/// The `rubble pack` command that writes this scene again (every option spelt out).
-std::string command_line(const PackArguments& a) {
-  std::string line = fmt::format("rubble pack {} --n {} --shape {}", a.kind, a.count, a.shape);
-  if (a.shape == "mix") line += fmt::format(" --polyhedron-fraction {}", number(a.polyhedron_fraction));
-  line += fmt::format(" --distribution {}", a.distribution);
-  if (a.distribution == "bins") {
-    line += fmt::format(" --bins {} --bin-fractions {}", a.bins, a.bin_fractions);
-  } else {
-    line += fmt::format(" --dmin {} --dmax {}", number(a.d_min), number(a.d_max));
-  }
-  line += fmt::format(" --density {} --friction {} --restitution {} --seed {}", number(a.density), number(a.friction),
-                      number(a.restitution), a.seed);
-  if (a.kind == "cloud") {
-    line += a.cloud_radius > 0.0 ? fmt::format(" --cloud-radius {}", number(a.cloud_radius))
-                                 : fmt::format(" --volume-fraction {}", number(a.volume_fraction));
-  }
-  if (a.kind == "box" && a.box_width > 0.0) line += fmt::format(" --box-width {}", number(a.box_width));
-  if (a.kind == "box") line += fmt::format(" --g {}", number(a.g));
-  if (a.end_time > 0.0) line += fmt::format(" --end-time {}", number(a.end_time));
-  if (!a.name.empty()) line += " --name " + a.name;
-  if (a.explicit_grains) line += " --explicit";
-  return line;
-}
-
-/// The scene text, with a generator.
-std::string scene_text(const PackArguments& a) {
-  std::ostringstream out;
-  const bool box = a.kind == "box";
-  const std::string name = a.name.empty() ? fmt::format("{}-{}-{}", a.kind, a.count, a.shape) : a.name;
-  out << "# rubble scene file written by rubble pack; reference: docs/scene-file.md. Regenerate with:\n# "
-      << command_line(a) << "\n";
-  out << "name = \"" << name << "\"\nseed = " << a.seed << "\n\n";
-  // Time: dt from the scene, until at rest; the end time caps the run.
-  double end_time = a.end_time;
-  if (!(end_time > 0.0)) {
-    // Accretion: 7 characteristic times 1/sqrt(G rho) (the study's plateau starts near 4.4 of
-    // them, 125 min); deposit: 20 fall times over the box height.
-    end_time = box ? 20.0 * std::sqrt(2.0 * 10.0 * a.d_max / a.g) : std::round(7.0 / std::sqrt(units::gravitational_constant * a.density));
-  }
-  out << "[time]\ndt = \"auto\"\nend_time = " << number(end_time) << "\nuntil = \"rest\"\n\n";
-  if (box) {
-    out << "[gravity]\ntype = \"uniform\"\nacceleration = [0.0, 0.0, " << number(-a.g) << "]\n\n";
-  } else {
-    out << "[gravity]\ntype = \"tree\"\n\n";
-  }
-  out << "[output]\ndirectory = \"" << name << "-output\"\n\n";
-  out << "[[materials]]\nname = \"grain\"\ndensity = " << number(a.density) << "\n\n";
-  out << "[default_contact_law]\nfriction = " << number(a.friction) << "\nrestitution = " << number(a.restitution)
-      << "\n\n";
-  if (a.kind == "cubic-grid") {
-    const auto k = static_cast<std::uint64_t>(std::llround(std::cbrt(static_cast<double>(a.count))));
-    if (k * k * k != a.count) {
-      throw std::invalid_argument(fmt::format("--n {} is not a cube k^3 (the cubic grid has n = k^3 grains; nearest: {} or {})",
-                                              a.count, k * k * k, (k + 1) * (k + 1) * (k + 1)));
-    }
-    out << "[[generators]]\ntype = \"cubic_grid\"\ncells_per_side = " << k << "\ncell_size = " << number(a.d_max) << "\n";
-  } else if (a.kind == "cloud") {
-    out << "[[generators]]\ntype = \"sphere_cloud\"\ncount = " << a.count << "\n";
-    if (a.cloud_radius > 0.0) {
-      out << "cloud_radius = " << number(a.cloud_radius) << "\n";
-    } else {
-      out << "volume_fraction = " << number(a.volume_fraction) << "\n";
-    }
-  } else {
-    // An open box of width W: floor at z = 0 and four sides; the deposit region is as high as
-    // the loose grid (cells of 1.1 d_max) needs.
-    const double width = a.box_width > 0.0 ? a.box_width : 10.0 * a.d_max;
-    const double cell = 1.1 * a.d_max;
-    const double per_layer = std::pow(std::floor(width / cell * (1.0 + 1e-9)), 2);
-    if (!(per_layer >= 1.0)) throw std::invalid_argument("--box-width must hold at least one grain (>= 1.1 dmax)");
-    const double layers = std::ceil(static_cast<double>(a.count) / per_layer);
-    const double h = 0.5 * width;
-    out << "[[walls]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\n";
-    for (const auto& [px, py, nx, ny] : {std::array<double, 4>{-h, 0, 1, 0}, {h, 0, -1, 0}, {0, -h, 0, 1}, {0, h, 0, -1}}) {
-      out << fmt::format("[[walls]]\ntype = \"plane\"\npoint = [{}, {}, 0.0]\nnormal = [{}, {}, 0.0]\n\n", number(px),
-                         number(py), number(nx), number(ny));
-    }
-    out << "[[generators]]\ntype = \"box_deposit\"\ncount = " << a.count << "\nregion_min = [" << number(-h) << ", "
-        << number(-h) << ", 0.0]\nregion_max = [" << number(h) << ", " << number(h) << ", "
-        << number(layers * cell * (1.0 + 1e-6)) << "]\n";
-  }
-  out << shape_keys(a) << size_keys(a);
-  return out.str();
-}
-
 int pack_command(const PackArguments& args) {
   std::string text;
   try {
-    text = scene_text(args);
+    text = pack_scene_text(args);
   } catch (const std::exception& e) {
     return bad_input(e.what());
   }

@@ -23,6 +23,8 @@ packages=(
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes
   # post-processing and output checks in tests
   python3 python3-numpy python3-h5py python3-matplotlib python3-vtk9
+  # the Python module `rubble` (python/): bindings, headers, its tests, sparse W and rotations
+  pybind11-dev python3-pybind11 python3-dev python3-pytest python3-scipy
 )
 
 missing=()

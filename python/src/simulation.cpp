@@ -1,0 +1,325 @@
+#include "simulation.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+#include <stdexcept>
+#include <string_view>
+#include <utility>
+
+#include "simulation/run.hpp"
+#include "simulation/scene_file.hpp"
+
+namespace rubble::python {
+namespace {
+
+/// The stage names, the columns of the run file's /series/stage_seconds.
+std::vector<std::string_view> stage_names() {
+  std::vector<std::string_view> names;
+  for (std::size_t s = 0; s < stage_count; ++s) names.push_back(stage_name(static_cast<Stage>(s)));
+  return names;
+}
+
+/// The grains' mass properties must be finite and positive, as run_scene requires.
+void check_mass_properties(const Model& model) {
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (!model.is_grain(b)) continue;
+    const bool ok = std::isfinite(model.mass[b]) && model.mass[b] > 0.0 && std::isfinite(model.inverse_mass[b]) &&
+                    model.inverse_mass[b] > 0.0 && model.principal_inertia[b].allFinite() &&
+                    (model.principal_inertia[b].array() > 0.0).all() && std::isfinite(model.bounding_radius[b]);
+    if (!ok) {
+      throw std::invalid_argument(fmt::format(
+          "body {} (a grain): mass {} kg, bounding radius {} m: expected finite positive values (is its size or "
+          "density out of range?)",
+          b, model.mass[b], model.bounding_radius[b]));
+    }
+  }
+}
+
+}  // namespace
+
+Simulation::Simulation(Scene scene, std::string scene_text, std::string scene_source)
+    : scene_(std::move(scene)), scene_text_(std::move(scene_text)), scene_source_(std::move(scene_source)) {
+  check_mass_properties(scene_.model);
+  // The state is moved out of the scene: one copy of it, which the numpy views point into.
+  state_ = std::move(scene_.state);
+  scene_.state = State{};
+  for (std::size_t b = 0; b < scene_.model.body_count(); ++b) grain_count_ += scene_.model.is_grain(b) ? 1 : 0;
+  free_inverse_mass_ = scene_.model.inverse_mass;
+  free_inverse_inertia_ = scene_.model.inverse_inertia;
+  rest_.criterion = scene_.run.rest;
+  progress_.first_step = state_.step;
+}
+
+Simulation Simulation::from_checkpoint(const Checkpoint& checkpoint) {
+  Scene scene = parse_scene(checkpoint.scene_text, checkpoint.scene_source);
+  if (checkpoint.state.body_count() != scene.model.body_count()) {
+    throw CheckpointError(fmt::format("checkpoint of {} bodies, its scene has {}", checkpoint.state.body_count(),
+                                      scene.model.body_count()));
+  }
+  scene.run.end_time = checkpoint.end_time;
+  Simulation simulation(std::move(scene), checkpoint.scene_text, checkpoint.scene_source);
+  simulation.state_ = checkpoint.state;
+  simulation.workspace_.contacts = checkpoint.contacts;
+  simulation.workspace_.detection_memory = checkpoint.detection_memory;
+  simulation.workspace_.held_gravity = checkpoint.held_gravity;
+  simulation.workspace_.held_gravity_step = checkpoint.held_gravity_step;
+  simulation.progress_ = checkpoint.progress;
+  const RestWatch& saved = checkpoint.rest;
+  simulation.rest_.armed = saved.armed;
+  if (saved.below) simulation.rest_.below_since = saved.below_since;
+  simulation.rest_.history.assign(saved.history.begin(), saved.history.end());
+  simulation.rest_.decay_window = saved.decay_window;
+  return simulation;
+}
+
+Simulation Simulation::branch() const {
+  Simulation copy;
+  copy.scene_ = scene_;
+  copy.scene_text_ = scene_text_;
+  copy.scene_source_ = scene_source_;
+  copy.scene_modified_ = scene_modified_;
+  copy.state_ = state_;
+  copy.workspace_ = workspace_;
+  copy.last_report_ = last_report_;
+  copy.total_stage_seconds_ = total_stage_seconds_;
+  copy.grain_count_ = grain_count_;
+  copy.free_inverse_mass_ = free_inverse_mass_;
+  copy.free_inverse_inertia_ = free_inverse_inertia_;
+  copy.watch_rest_ = watch_rest_;
+  copy.at_rest_ = at_rest_;
+  copy.rest_ = rest_;
+  copy.progress_ = progress_;
+  return copy;
+}
+
+namespace {
+
+/// The first body whose position, orientation or velocity is not finite (body_count() if none).
+std::size_t first_non_finite_body(const State& state) {
+  for (std::size_t b = 0; b < state.body_count(); ++b) {
+    if (!state.position[b].allFinite() || !state.orientation[b].coeffs().allFinite() ||
+        !state.velocity[b].allFinite() || !state.angular_velocity[b].allFinite()) {
+      return b;
+    }
+  }
+  return state.body_count();
+}
+
+}  // namespace
+
+const StepReport& Simulation::advance() {
+  // The run loop's conservation monitor starts from the potential energy before a step that
+  // holds the self-gravity field (run.cpp): evaluated here, before the state moves on.
+  if (record_ && !potential_energy_ && scene_.run.step.gravity.evaluate_every > 1) {
+    potential_energy_ = gravitational_potential_energy(scene_.model, state_, scene_.run.step.gravity);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    last_report_ = step(scene_.model, state_, workspace_, scene_.run.step);
+  } catch (const std::runtime_error&) {
+    // As run_scene: a non-finite state makes detection refuse the midpoint configuration; report
+    // it as the end-of-step check below would.
+    if (first_non_finite_body(state_) == state_.body_count()) throw;
+  }
+  const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (const std::size_t b = first_non_finite_body(state_); b < state_.body_count()) {
+    throw NumericalFailure(fmt::format("step {} (t = {:.6g} s): body {}: non-finite position, orientation or velocity",
+                                       state_.step, state_.time, b));
+  }
+  for (std::size_t s = 0; s < stage_count; ++s) total_stage_seconds_[s] += last_report_.stage_seconds[s];
+  progress_.iteration_sum += last_report_.solver.iterations;
+  progress_.max_residual = std::max(progress_.max_residual, last_report_.solver.residual);
+  if (!last_report_.solver.converged) ++progress_.unconverged_steps;
+  progress_.wall_seconds += step_seconds;
+
+  if (!record_ && !watch_rest_) return last_report_;
+  const double energy = kinetic_energy(scene_.model, state_);
+  if (watch_rest_ && grain_count_ > 0) {
+    at_rest_ = rest_.update(state_.time, energy / static_cast<double>(grain_count_)) || at_rest_;
+  }
+  if (record_) {
+    SeriesRow row;
+    row.step = state_.step;
+    row.time = state_.time;
+    row.kinetic_energy = energy;
+    row.contacts = static_cast<std::int64_t>(last_report_.contacts);
+    row.active_contacts = static_cast<std::int64_t>(last_report_.solver.active_contacts);
+    row.iterations = last_report_.solver.iterations;
+    row.residual = last_report_.solver.residual;
+    row.wall_seconds = step_seconds;
+    // The conservation monitor's columns, as run_scene fills them.
+    if (last_report_.potential_energy_known) {
+      potential_energy_ = last_report_.potential_energy;
+    } else {
+      *potential_energy_ -= last_report_.work_of_held_field;
+    }
+    row.potential_energy = *potential_energy_;
+    row.total_energy = row.kinetic_energy + row.potential_energy;
+    const GrainMomenta momenta = grain_momenta(scene_.model, state_);
+    row.linear_momentum = momenta.linear;
+    row.angular_momentum = momenta.angular;
+    row.stage_seconds = last_report_.stage_seconds;
+    record_->append_series(row);
+    if ((state_.step - record_first_step_) % snapshot_period_ == 0 || at_rest_) write_snapshot();
+  }
+  return last_report_;
+}
+
+std::int64_t Simulation::steps_to(double time) const {
+  const double h = scene_.run.step.integrator.time_step;
+  return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil((time - state_.time) / h - 1e-9)));
+}
+
+void Simulation::record(const std::filesystem::path& directory, double end_time) {
+  if (record_) throw std::runtime_error("already recording " + record_->path().string() + "; close it first");
+  std::filesystem::create_directories(directory);
+  const std::vector<std::string_view> names = stage_names();
+  record_.emplace(RunFile::create(directory / "run.h5", scene_.model, scene_text_, names));
+  record_->hold_metadata_until_flush();
+  record_first_step_ = state_.step;
+  const OutputOptions& output = scene_.run.output;
+  if (output.snapshot_every_steps > 0) {
+    snapshot_period_ = output.snapshot_every_steps;
+  } else if (output.snapshot_interval > 0.0) {
+    snapshot_period_ = std::max<std::int64_t>(1, std::llround(output.snapshot_interval / scene_.run.step.integrator.time_step));
+  } else {
+    snapshot_period_ = std::max<std::int64_t>(1, steps_to(end_time) / 100);
+  }
+  progress_.first_step = state_.step;
+  potential_energy_.reset();  // the run loop's monitor starts afresh with the file
+  progress_.snapshot_period = snapshot_period_;
+  progress_.end_step = state_.step + steps_to(end_time);
+  last_snapshot_step_ = -1;
+  write_snapshot();
+}
+
+void Simulation::write_snapshot() {
+  if (!record_ || last_snapshot_step_ == state_.step) return;
+  record_->write_snapshot(state_, workspace_.contacts);
+  last_snapshot_step_ = state_.step;
+}
+
+void Simulation::close_record() {
+  if (!record_) return;
+  write_snapshot();
+  record_->flush();
+  record_.reset();
+}
+
+std::filesystem::path Simulation::record_path() const { return record_ ? record_->path() : std::filesystem::path(); }
+
+std::filesystem::path Simulation::save_checkpoint(const std::filesystem::path& folder, int keep) {
+  if (keep < 1) throw std::invalid_argument(fmt::format("keep: expected >= 1, got {}", keep));
+  // The run's end step as the checkpoint format checks it (step within [first_step, end_step]).
+  progress_.end_step = std::max(progress_.end_step, state_.step + steps_to(scene_.run.end_time));
+  if (record_) {
+    record_->flush();  // as the run loop: the checkpoint never promises rows that are not on disk
+    progress_.series_rows = record_->series_rows();
+    progress_.snapshots = record_->snapshot_count();
+  }
+  // A scene changed between steps is saved as it is now (every grain explicit), so that loading
+  // the checkpoint runs on with the new time step and contact laws.
+  std::string text = scene_text_;
+  if (scene_modified_) {
+    // scene_to_toml reads the grains' positions from scene.state: lend it the current state
+    // (swapping vectors moves no element, so numpy views stay valid) and take it back.
+    std::swap(scene_.state, state_);
+    try {
+      text = scene_to_toml(scene_);
+    } catch (...) {
+      std::swap(scene_.state, state_);
+      throw;
+    }
+    std::swap(scene_.state, state_);
+  }
+  RestWatch rest;
+  rest.armed = rest_.armed;
+  rest.below = rest_.below_since.has_value();
+  rest.below_since = rest_.below_since.value_or(0.0);
+  rest.history.assign(rest_.history.begin(), rest_.history.end());
+  rest.decay_window = rest_.decay_window;
+  const CheckpointView view{text,
+                            scene_source_,
+                            scene_.run.end_time,
+                            scene_.run.seed,
+                            state_,
+                            workspace_.contacts,
+                            workspace_.detection_memory,
+                            progress_,
+                            rest,
+                            workspace_.held_gravity,
+                            workspace_.held_gravity_step};
+  return write_checkpoint(folder, view, keep);
+}
+
+void Simulation::set_fixed(std::size_t body, bool fixed) {
+  Model& model = scene_.model;
+  if (body >= model.body_count()) {
+    throw std::out_of_range(fmt::format("body {}: expected an id < {}", body, model.body_count()));
+  }
+  if (!model.is_grain(body)) throw std::invalid_argument(fmt::format("body {} is a wall: walls are always fixed", body));
+  if (fixed) {
+    model.inverse_mass[body] = 0.0;
+    model.inverse_inertia[body] = Vec3::Zero();
+    state_.velocity[body] = Vec3::Zero();
+    state_.angular_velocity[body] = Vec3::Zero();
+  } else {
+    model.inverse_mass[body] = free_inverse_mass_[body];
+    model.inverse_inertia[body] = free_inverse_inertia_[body];
+  }
+}
+
+void Simulation::set_contact_law(int material_a, int material_b, const ContactLaw& law) {
+  const int n = scene_.model.contact_laws.material_count;
+  if (material_a < 0 || material_a >= n || material_b < 0 || material_b >= n) {
+    throw std::out_of_range(fmt::format("materials ({}, {}): expected ids in [0, {})", material_a, material_b, n));
+  }
+  if (!(law.friction_coefficient >= 0.0) || !std::isfinite(law.friction_coefficient)) {
+    throw std::invalid_argument(fmt::format("friction: expected a finite number >= 0, got {}", law.friction_coefficient));
+  }
+  if (!(law.normal_restitution >= 0.0 && law.normal_restitution <= 1.0)) {
+    throw std::invalid_argument(fmt::format("restitution: expected a number in [0, 1], got {}", law.normal_restitution));
+  }
+  scene_.model.contact_laws.set(material_a, material_b, law);
+  scene_modified_ = true;
+}
+
+void Simulation::set_time_step(double h) {
+  if (!(h > 0.0) || !std::isfinite(h)) throw std::invalid_argument(fmt::format("dt: expected a finite number > 0, got {}", h));
+  scene_.run.step.integrator.time_step = h;
+  scene_.run.automatic_time_step = false;
+  scene_modified_ = true;
+}
+
+PotentialSettings Simulation::potential_settings() const {
+  // The same mapping as `rubble post` (apps/cmd_post.cpp): the central field has no potential
+  // in the metrics yet.
+  const GravitySettings& gravity = scene_.run.step.gravity;
+  PotentialSettings potential;
+  switch (gravity.kind) {
+    case GravitySettings::Kind::none:
+    case GravitySettings::Kind::central:
+      potential.kind = PotentialSettings::Kind::none;
+      break;
+    case GravitySettings::Kind::uniform:
+      potential.kind = PotentialSettings::Kind::uniform;
+      potential.acceleration = gravity.acceleration;
+      break;
+    case GravitySettings::Kind::self:
+      potential.kind = PotentialSettings::Kind::self;
+      potential.gravitational_constant = gravity.self_gravity.G;
+      potential.softening = gravity.self_gravity.softening.kind == gravity::Softening::Kind::plummer
+                                ? gravity.self_gravity.softening.length
+                                : 0.0;
+      break;
+  }
+  return potential;
+}
+
+AggregateMetrics Simulation::metrics(const ContactMetricsOptions& options) const {
+  return compute_metrics(scene_.model, state_, workspace_.contacts, potential_settings(), options);
+}
+
+}  // namespace rubble::python
