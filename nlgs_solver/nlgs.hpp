@@ -33,7 +33,7 @@ struct SolverOptions {
   /// Larger problems are not polished: the sparse factorisation of a compact 3D aggregate fills
   /// in like a 3D mesh (measured: 13-78 s a polish at 5 800 polyhedron contact points, against
   /// 0.07 s for 40 sweeps), so the polish is for stacks and small piles.
-  std::size_t polish_max_contacts = 2000;
+  std::size_t polish_max_contacts = 500;
   /// Polishes per step at most (each after twice the sweeps of the previous one).
   int polish_attempts_per_step = 2;
   /// Spatial blocks of the sweep (nlgs_solver/README.md, "Sweep order and threads"): the moving

@@ -32,7 +32,7 @@ penetration_correction = 0.5
 max_correction_velocity = 0.25
 polish_after = 15
 polish_iterations = 7
-polish_max_contacts = 500
+polish_max_contacts = 700
 [detection]
 alert_distance = 0.001
 pair_list_margin = 0.002
@@ -97,7 +97,7 @@ TEST(ParseScene, GoodSceneGivesItsModelStateAndOptions) {
   EXPECT_EQ(scene.run.step.solver.overlap_recovery.max_velocity, 0.25);
   EXPECT_EQ(scene.run.step.solver.polish_after, 15);
   EXPECT_EQ(scene.run.step.solver.polish_iterations, 7);
-  EXPECT_EQ(scene.run.step.solver.polish_max_contacts, 500u);
+  EXPECT_EQ(scene.run.step.solver.polish_max_contacts, 700u);
   EXPECT_EQ(scene.run.step.detection.alert_distance, 0.001);
   EXPECT_EQ(scene.run.step.detection.pair_list_margin, 0.002);
   EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::uniform);
