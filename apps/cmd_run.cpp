@@ -21,6 +21,7 @@
 
 #include "apps/commands.hpp"
 #include "simulation/checkpoint.hpp"
+#include "simulation/output_lock.hpp"
 #include "simulation/run.hpp"
 #include "simulation/scene_file.hpp"
 
@@ -200,6 +201,10 @@ int run_command(const RunArguments& args) {
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;
+  } catch (const OutputFolderBusy& e) {
+    return bad_input(e.what());
+  } catch (const OutputFolderError& e) {
+    return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
   } catch (const std::invalid_argument& e) {

@@ -12,6 +12,7 @@
 
 #include "postprocessing/metrics.hpp"
 #include "postprocessing/run_file.hpp"
+#include "simulation/output_lock.hpp"
 #include "simulation/run_control.hpp"
 
 namespace rubble {
@@ -171,7 +172,14 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   check_mass_properties(model);
 
   const fs::path directory = run.output.directory;
-  fs::create_directories(directory);
+  // The folder is ours before anything in it is opened or truncated (output_lock.hpp), and stays
+  // ours until the run file is closed: the lock is declared before `file`, so it outlives it.
+  const OutputFolderLock lock = OutputFolderLock::acquire(directory);
+  if (lock.taken_over_from() && control.progress) {
+    *control.progress << fmt::format("rubble run: {}: took over the stale lock of pid {} (that run is gone)\n",
+                                     lock.file().string(), *lock.taken_over_from());
+    control.progress->flush();
+  }
   summary.run_file = directory / "run.h5";
   const fs::path checkpoints = checkpoint_folder(directory);
   std::vector<std::string_view> stage_names;

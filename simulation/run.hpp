@@ -75,7 +75,9 @@ struct RunSummary {
 
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
 /// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in
-/// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory. Throws
+/// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory, which it locks
+/// first (simulation/output_lock.hpp: OutputFolderBusy if another process runs there,
+/// OutputFolderError if it cannot be made; nothing is opened before). Throws
 /// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors,
 /// CheckpointError if control.resume does not fit the scene or the run file, and
 /// std::invalid_argument (before writing anything) if a grain's mass, inertia or size is not
