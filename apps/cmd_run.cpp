@@ -23,6 +23,7 @@
 #include "simulation/checkpoint.hpp"
 #include "simulation/output_lock.hpp"
 #include "simulation/run.hpp"
+#include "simulation/run_control.hpp"
 #include "simulation/scene_file.hpp"
 
 namespace rubble::apps {
@@ -150,6 +151,13 @@ int run_command(const RunArguments& args) {
   if (!resuming) {
     if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
     if (args.end_time > 0.0) scene.run.end_time = args.end_time;
+  }
+  // An override is held to the scene's own rule for [time] end_time (run_control.hpp): the step
+  // count from the scene's initial time, for a new run and a resumed one alike.
+  if (args.end_time > 0.0) {
+    if (const auto problem = end_time_problem(args.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
+      return bad_input("--end-time: " + *problem);
+    }
   }
   control.checkpoint_every_steps = args.checkpoint_every;
   control.checkpoint_interval = 60.0 * args.checkpoint_minutes;

@@ -187,8 +187,14 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
 
   // The end step follows from the scene's initial state and the end time, the same way in a new
   // run and in a resumed one (whose scene is parsed from the same text).
-  const auto total_steps =
-      std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil((run.end_time - initial_time) / h - 1e-9)));
+  // A step count past max_run_steps (or not finite) would not fit the cast below: refused, as
+  // the scene file's and the command line's checks refuse it (run_control.hpp).
+  const double wanted_steps = (run.end_time - initial_time) / h;
+  if (!std::isfinite(wanted_steps) || wanted_steps > max_run_steps) {
+    throw std::invalid_argument(fmt::format("end time {:.6g} s: {:.6g} steps of dt = {:.6g} s, expected at most 10^12",
+                                            run.end_time, wanted_steps, h));
+  }
+  const auto total_steps = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(wanted_steps - 1e-9)));
   std::optional<RunFile> file;
   std::int64_t last_checkpoint_step = -1;
   if (control.resume != nullptr) {

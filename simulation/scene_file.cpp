@@ -508,8 +508,9 @@ class SceneParser {
   void check_step_count(const TableReader& time) const {
     const auto& integrator = scene_.run.step.integrator;
     const std::string origin = scene_.run.automatic_time_step ? " (the automatic dt)" : "";
-    // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take.
-    constexpr double max_steps = 1e12;
+    // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take
+    // (the same bound holds --end-time, run_control.hpp).
+    constexpr double max_steps = max_run_steps;
     if (scene_.run.end_time / integrator.time_step > max_steps) {
       time.fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
                               show_short(scene_.run.end_time / max_steps) + " s), got dt = " +
