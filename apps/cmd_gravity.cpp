@@ -3,7 +3,10 @@
 // with rubble::gravity, optionally writes `accelerations` (N x 3) and `potential` (N) to OUT.h5,
 // and prints one JSON line (N, method, backend, theta, order, threads, build/walk/total seconds).
 // Invalid input, or a backend that cannot run here (--backend cuda without a GPU), -> message on
-// stderr naming the file or option and the problem, exit code 2.
+// stderr naming the file or option and the problem, exit code 2; that includes coordinates or
+// masses so large that the field would overflow (see max_coordinate). A non-finite acceleration
+// or potential in the result is a numerical failure: exit code 3 naming the particle, no output
+// file.
 
 #include "core/hdf5_io.hpp"
 #include <omp.h>
@@ -11,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -45,6 +49,18 @@ struct BadInput : std::runtime_error {
 
 using hdf5::Handle;
 using QuietHdf5 = hdf5::QuietErrors;
+
+/// Bounds on |coordinate| (m) and on mass (kg) in the input: the tree's quadrupole moments grow as
+/// m r^2 and are summed over N particles, and the field as G M / r^2; with |x| and m at most 1e60
+/// those stay below 1e200 for any N a machine holds, where 1e308 overflows. The observable
+/// universe is about 1e27 m across and 1e53 kg, so no physical input comes near.
+constexpr double max_coordinate = 1e60;
+constexpr double max_mass = 1e60;
+
+/// A non-finite field: reported on stderr, exit code 3.
+struct NonFiniteField : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 /// Reads a numeric dataset as doubles and returns its dimensions. Throws BadInput.
 std::vector<double> read_dataset(hid_t file, const std::string& path, const std::string& name,
@@ -148,6 +164,16 @@ int gravity_command(const GravityArguments& args) {
       if (!std::isfinite(positions[i]))
         throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) +
                        "] is not finite");
+    for (std::size_t i = 0; i < positions.size(); ++i)
+      if (std::abs(positions[i]) > max_coordinate)
+        throw BadInput(fmt::format("{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
+                                   "overflows double precision)",
+                                   in, i / 3, i % 3, positions[i], max_coordinate));
+    for (std::size_t i = 0; i < masses.size(); ++i)
+      if (masses[i] > max_mass)
+        throw BadInput(fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
+                                   "double precision)",
+                                   in, i, masses[i], max_mass));
 
     // ---- compute
     if (args.threads > 0) omp_set_num_threads(args.threads);
@@ -161,6 +187,16 @@ int gravity_command(const GravityArguments& args) {
       throw BadInput(in + ": " + e.what());
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(acc[3 * i]) || !std::isfinite(acc[3 * i + 1]) || !std::isfinite(acc[3 * i + 2]) ||
+          !std::isfinite(pot[i])) {
+        throw NonFiniteField(fmt::format(
+            "{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the field overflows "
+            "double precision: a large --G, or particles very close together without --softening)",
+            in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
+            acc[3 * i + 2], pot[i]));
+      }
+    }
 
     // ---- output
     if (!args.output.empty()) {
@@ -198,6 +234,9 @@ int gravity_command(const GravityArguments& args) {
   } catch (const BadInput& e) {
     std::cerr << "rubble gravity: error: " << e.what() << "\n";
     return exit_bad_input;
+  } catch (const NonFiniteField& e) {
+    std::cerr << "rubble gravity: numerical failure: " << e.what() << "; no output written\n";
+    return exit_numerical_failure;
   }
   return exit_ok;
 }

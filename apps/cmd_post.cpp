@@ -88,6 +88,9 @@ int post_command(const PostArguments& args) {
     options.histogram_bins = args.bins;
     options.log = log;
     post_process_run(run, options);
+  } catch (const NonFiniteResult& e) {
+    std::cerr << "rubble post: numerical failure: " << e.what() << "\n";
+    return exit_numerical_failure;
   } catch (const std::exception& e) {
     std::cerr << "rubble post: error: " << e.what() << "\n";
     return exit_bad_input;

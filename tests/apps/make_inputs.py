@@ -1,12 +1,15 @@
 """Writes the binary inputs of the CLI bad-input corpus (cases.txt) into OUTDIR.
 
-usage: make_inputs.py OUTDIR
+usage: make_inputs.py OUTDIR [RUBBLE]
 
 HDF5 files for `rubble gravity` (one mistake each, next to a valid one so that argument cases
 are not masked by file errors), and run folders with unusable checkpoints for `rubble run
---resume`. Text inputs (scene and polyhedron files) live in tests/apps/inputs/ instead.
+--resume`, FCLib problems for `rubble fclib`, and (given the RUBBLE binary) a run whose last
+snapshot holds a NaN position for `rubble post`. Text inputs (scene and polyhedron files) live in tests/apps/inputs/ instead.
 """
 import os
+import shutil
+import subprocess
 import sys
 
 import h5py
@@ -21,7 +24,43 @@ def gravity_file(path, positions=None, masses=None):
             f["masses"] = masses
 
 
-def main(out):
+def fclib_file(path, W, q, mu):
+    """An FCLib local problem, W in triplet form (nz >= 0; FCLib's i = rows, p = columns)."""
+    rows, columns = np.nonzero(W)
+    with h5py.File(path, "w") as f:
+        g = f.create_group("fclib_local")
+        g["spacedim"] = np.array([3], dtype=np.int32)
+        w = g.create_group("W")
+        n = W.shape[0]
+        w["m"] = np.array([n], dtype=np.int32)
+        w["n"] = np.array([n], dtype=np.int32)
+        w["nz"] = np.array([len(rows)], dtype=np.int32)
+        w["nzmax"] = np.array([len(rows)], dtype=np.int32)
+        w["i"] = rows.astype(np.int32)
+        w["p"] = columns.astype(np.int32)
+        w["x"] = W[rows, columns].astype(np.float64)
+        v = g.create_group("vectors")
+        v["q"] = np.asarray(q, dtype=np.float64)
+        v["mu"] = np.asarray(mu, dtype=np.float64)
+
+
+def nan_run(out, rubble, scene):
+    """A real run (two spheres dropped, 0.01 s), copied and given a NaN position in its last snapshot."""
+    work = f"{out}/nan_run_source"
+    shutil.rmtree(work, ignore_errors=True)
+    subprocess.run([rubble, "run", scene, "--out", work, "--end-time", "0.01", "-q"], check=True,
+                   stdout=subprocess.DEVNULL)
+    os.makedirs(f"{out}/nan_run", exist_ok=True)
+    shutil.copy(f"{work}/run.h5", f"{out}/nan_run/run.h5")
+    with h5py.File(f"{out}/nan_run/run.h5", "r+") as f:
+        last = sorted(f["snapshots"].keys())[-1]
+        position = f[f"snapshots/{last}/position"]
+        x = position[...]
+        x[1, 2] = np.nan
+        position[...] = x
+
+
+def main(out, rubble=None):
     os.makedirs(out, exist_ok=True)
     rng = np.random.default_rng(1)
     x = rng.uniform(-1, 1, size=(20, 3))
@@ -68,5 +107,30 @@ def main(out):
         f.write(b"RUBB")
 
 
+    # FCLib problems: a zero Delassus block on contact 1, an all-zero W, and a W_nn of 1e-300
+    # with q_n = -1e300 (the normal impulse -q_n / W_nn overflows), and a good one.
+    eye = np.eye(6)
+    zero_block = eye.copy()
+    zero_block[3:, 3:] = 0.0
+    fclib_file(f"{out}/fclib_zero_block.hdf5", zero_block, [-1, 0, 0, -1, 0, 0], [0.3, 0.3])
+    all_zero = np.zeros((6, 6))
+    all_zero[0, 1] = 1e-3  # one entry, so that W is not empty, off the diagonal
+    fclib_file(f"{out}/fclib_all_zero_diagonal.hdf5", all_zero, [-1, 0, 0, -1, 0, 0], [0.3, 0.3])
+    tiny = np.eye(3) * 1e-300
+    fclib_file(f"{out}/fclib_overflow.hdf5", tiny, [-1e300, 0, 0], [0.3])
+    fclib_file(f"{out}/fclib_good.hdf5", eye, [-1, 0, 0, -2, 0, 0], [0.3, 0.3])
+
+    # Gravity inputs whose field would overflow.
+    huge = x.copy()
+    huge[5, 2] = 1e200
+    gravity_file(f"{out}/huge_position.h5", huge, m)
+    heavy = m.copy()
+    heavy[7] = 1e300
+    gravity_file(f"{out}/huge_mass.h5", x, heavy)
+
+    if rubble is not None:
+        nan_run(out, rubble, os.path.join(os.path.dirname(os.path.abspath(__file__)), "inputs", "small_drop.toml"))
+
+
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], sys.argv[2] if len(sys.argv) > 2 else None)
