@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "apps/commands.hpp"
+#include "core/input_file.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/output_lock.hpp"
 #include "simulation/run.hpp"
@@ -134,16 +135,15 @@ int run_command(const RunArguments& args) {
       control.scene_source = "<built-in default scene>";
       scene = parse_scene(control.scene_text, control.scene_source);
     } else {
-      std::ifstream in(args.scene_path);
-      if (!in) return bad_input(args.scene_path + ": cannot open the scene file");
-      std::stringstream buffer;
-      buffer << in.rdbuf();
-      control.scene_text = buffer.str();
-      scene = load_scene_file(args.scene_path);
+      // Read once, with the scene file's cap and only from a regular file (core/input_file.hpp).
+      control.scene_text = read_input_file(args.scene_path, max_scene_file_bytes, "scene file");
+      scene = parse_scene(control.scene_text, args.scene_path);
       // Absolute, so that a resumed run anchors the scene's relative paths the same way.
       control.scene_source = std::filesystem::absolute(args.scene_path).string();
     }
   } catch (const SceneError& e) {
+    return bad_input(e.what());
+  } catch (const InputFileError& e) {
     return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());

@@ -22,6 +22,7 @@
 #include "preprocessing/packing.hpp"
 #include "preprocessing/polyhedron_file.hpp"
 #include "preprocessing/random_polyhedron.hpp"
+#include "core/input_file.hpp"
 #include "simulation/run_control.hpp"
 
 namespace rubble {
@@ -1333,16 +1334,14 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name) {
 
 Scene load_scene_file(const std::filesystem::path& path) {
   const std::string name = path.string();
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    throw SceneError(name, 0, "", "is a folder, expected a scene file (.toml)");
+  std::string text;
+  try {
+    // Regular files of at most 256 MiB (core/input_file.hpp): /dev/zero or a FIFO is refused.
+    text = read_input_file(path, max_scene_file_bytes, "scene file");
+  } catch (const InputFileError& e) {
+    throw SceneError(name, 0, "", e.reason);
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(name, 0, "", "cannot open the scene file (missing or unreadable)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw SceneError(name, 0, "", "cannot read the scene file");
-  return parse_scene(text.str(), name);
+  return parse_scene(text, name);
 }
 
 std::string default_scene_toml(DefaultScene variant) {

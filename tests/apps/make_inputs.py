@@ -128,6 +128,21 @@ def main(out, rubble=None):
     heavy[7] = 1e300
     gravity_file(f"{out}/huge_mass.h5", x, heavy)
 
+    # Files that are not regular or too large: a FIFO, links to /dev/zero (as a scene and as a
+    # polyhedron file, the latter used by a scene), and a sparse scene file of 300 MiB (no disk used).
+    for name in ("fifo.toml", "zero_link.toml", "zero_link.off", "big_scene.toml"):
+        if os.path.lexists(f"{out}/{name}"):
+            os.remove(f"{out}/{name}")
+    os.mkfifo(f"{out}/fifo.toml")
+    os.symlink("/dev/zero", f"{out}/zero_link.toml")
+    os.symlink("/dev/zero", f"{out}/zero_link.off")
+    with open(f"{out}/big_scene.toml", "wb") as f:
+        f.truncate(300 << 20)
+    with open(f"{out}/zero_mesh_scene.toml", "w") as f:
+        f.write("[time]\ndt = 1e-4\nend_time = 0.01\n[[materials]]\nname = \"rock\"\ndensity = 2500.0\n"
+                "[[contact_laws]]\nmaterials = [\"rock\", \"rock\"]\nfriction = 0.3\n"
+                "[[bodies]]\nshape = \"polyhedron\"\nfile = \"zero_link.off\"\nposition = [0.0, 0.0, 0.0]\n")
+
     if rubble is not None:
         nan_run(out, rubble, os.path.join(os.path.dirname(os.path.abspath(__file__)), "inputs", "small_drop.toml"))
 
