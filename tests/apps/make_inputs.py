@@ -44,6 +44,27 @@ def fclib_file(path, W, q, mu):
         v["mu"] = np.asarray(mu, dtype=np.float64)
 
 
+def uv_sphere_off(path, n_lat, n_lon, bump=None):
+    """A convex UV sphere as OFF (planar quads, triangle fans at the poles), n_lat * n_lon + 2
+    vertices; bump = (vertex, factor) moves one vertex radially."""
+    t = np.pi * np.arange(1, n_lat + 1) / (n_lat + 1)
+    p = 2 * np.pi * np.arange(n_lon) / n_lon
+    tt, pp = np.meshgrid(t, p, indexing="ij")
+    ring = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], axis=-1).reshape(-1, 3)
+    v = np.vstack([[0.0, 0.0, 1.0], ring, [0.0, 0.0, -1.0]])
+    if bump is not None:
+        v[bump[0]] *= bump[1]
+    at = lambda i, j: 1 + (i - 1) * n_lon + (j % n_lon)
+    last = len(v) - 1
+    faces = [(0, at(1, j), at(1, j + 1)) for j in range(n_lon)]
+    faces += [(at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)) for i in range(1, n_lat) for j in range(n_lon)]
+    faces += [(last, at(n_lat, j + 1), at(n_lat, j)) for j in range(n_lon)]
+    with open(path, "w") as f:
+        f.write(f"OFF\n{len(v)} {len(faces)} 0\n")
+        f.writelines(f"{x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in v)
+        f.writelines(f"{len(face)} {' '.join(map(str, face))}\n" for face in faces)
+
+
 def nan_run(out, rubble, scene):
     """A real run (two spheres dropped, 0.01 s), copied and given a NaN position in its last snapshot."""
     work = f"{out}/nan_run_source"
@@ -127,6 +148,11 @@ def main(out, rubble=None):
     heavy = m.copy()
     heavy[7] = 1e300
     gravity_file(f"{out}/huge_mass.h5", x, heavy)
+
+    # A convex polyhedron of 10^5 vertices (checked on its hull in about a second; it took 233 s
+    # when every face was compared with every vertex), and a large one with a vertex pushed out.
+    uv_sphere_off(f"{out}/sphere_1e5_vertices.off", 316, 316)
+    uv_sphere_off(f"{out}/sphere_bumped.off", 40, 40, bump=(801, 1.02))
 
     # Files that are not regular or too large: a FIFO, links to /dev/zero (as a scene and as a
     # polyhedron file, the latter used by a scene), and a sparse scene file of 300 MiB (no disk used).
