@@ -209,6 +209,9 @@ int run_command(const RunArguments& args) {
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;
+  } catch (const OutputError& e) {
+    std::cerr << "rubble run: output failure: " << e.what() << "\n";
+    return exit_output_failure;
   } catch (const OutputFolderBusy& e) {
     return bad_input(e.what());
   } catch (const OutputFolderError& e) {

@@ -4,8 +4,12 @@
 #include <iostream>
 
 #include "apps/commands.hpp"
+#include "core/hdf5_io.hpp"
 
 int main(int argc, char** argv) {
+  // Before any HDF5 call: no library clean-up at exit, which crashes on a file whose close failed
+  // (disk full); every file is closed by its owner first (core/hdf5_io.hpp).
+  rubble::hdf5::skip_library_cleanup_at_exit();
   CLI::App app{"rubble: Contact Dynamics (Moreau-Jean + NLGS) for rubble-pile asteroids"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "rubble 0.1.0");

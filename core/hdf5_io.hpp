@@ -53,6 +53,12 @@ class Handle {
   Closer closer_ = nullptr;
 };
 
+/// Turns off HDF5's clean-up at process exit (H5dont_atexit); call before any other HDF5 call.
+/// That clean-up closes the files left open, and HDF5 1.10 crashes (SIGSEGV in H5F__close_cb)
+/// on a file whose close already failed, e.g. on a full disk. rubble closes every file it opens
+/// through Handle (RAII), so the clean-up has nothing else to do.
+inline void skip_library_cleanup_at_exit() { H5dont_atexit(); }
+
 /// While alive, HDF5 does not print its error stack on stderr (we throw with the message instead).
 /// Restores the previous error handler on destruction.
 class QuietErrors {

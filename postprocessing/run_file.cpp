@@ -171,6 +171,33 @@ struct RunFile::Impl {
   std::int64_t rows = 0;
   std::int64_t snapshots = 0;
   std::size_t body_count = 0;  // of the model: every snapshot has this many bodies
+  // A write or flush failed (disk full, I/O error): the file is not flushed again on close, and
+  // later writes are refused, so that HDF5 is not asked to retry what cannot succeed.
+  bool failed = false;
+
+  /// Runs one write; a failure marks the file failed and is passed on.
+  template <typename Write>
+  void guarded(Write&& write) {
+    if (failed) throw std::runtime_error(path.string() + ": an earlier write to the run file failed");
+    try {
+      write();
+    } catch (...) {
+      failed = true;
+      throw;
+    }
+  }
+
+  /// Closes every object, children before the file (HDF5 keeps a file open while any of its
+  /// objects is), with HDF5's error printing off: after a failed write the closes fail too.
+  void close() noexcept {
+    const hdf5::QuietErrors quiet;
+    columns.clear();
+    stage_columns.clear();
+    stage_group.reset();
+    series_group.reset();
+    snapshots_group.reset();
+    file.reset();
+  }
 
   void write_buffered_rows() {
     const std::size_t count = step.size();
@@ -206,12 +233,15 @@ RunFile& RunFile::operator=(RunFile&& other) noexcept {
 
 RunFile::~RunFile() {
   if (!impl_) return;
-  try {
-    flush();
-  } catch (const std::exception& error) {
-    // A destructor must not throw; the run loop calls flush() itself to see errors.
-    std::fprintf(stderr, "rubble: run file not flushed on close: %s\n", error.what());
+  if (!impl_->failed) {
+    try {
+      flush();
+    } catch (const std::exception& error) {
+      // A destructor must not throw; the run loop calls flush() itself to see errors.
+      std::fprintf(stderr, "rubble: run file not flushed on close: %s\n", error.what());
+    }
   }
+  impl_->close();
 }
 
 RunFile RunFile::create(const fs::path& path, const Model& model, std::string_view scene_text,
@@ -368,13 +398,18 @@ void RunFile::append_series(const SeriesRow& row) {
   ++f.rows;
   if (f.step.size() >= series_buffer_rows) {
     const hdf5::QuietErrors quiet;
-    f.write_buffered_rows();
+    f.guarded([&] { f.write_buffered_rows(); });
   }
 }
 
 void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
+  f.guarded([&] { write_snapshot_now(state, contacts); });
+}
+
+void RunFile::write_snapshot_now(const State& state, const ContactList& contacts) {
+  Impl& f = *impl_;
   std::array<char, 16> name{};
   std::snprintf(name.data(), name.size(), "%06lld", static_cast<long long>(f.snapshots));
   Handle group = hdf5::create_group(f.snapshots_group.get(), name.data(), f.path);
@@ -437,8 +472,10 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
 void RunFile::flush() {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
-  f.write_buffered_rows();
-  hdf5::check(H5Fflush(f.file.get(), H5F_SCOPE_LOCAL), f.path, "cannot flush");
+  f.guarded([&] {
+    f.write_buffered_rows();
+    hdf5::check(H5Fflush(f.file.get(), H5F_SCOPE_LOCAL), f.path, "cannot flush");
+  });
 }
 
 const fs::path& RunFile::path() const { return impl_->path; }

@@ -540,7 +540,14 @@ fs::path write_checkpoint(const fs::path& folder, const CheckpointView& checkpoi
   const std::string name = fmt::format("step-{:012}.ckpt", checkpoint.state.step);
   const fs::path final_path = folder / name;
   const fs::path temporary = folder / (name + ".tmp");
-  write_checkpoint_file(temporary, checkpoint);
+  try {
+    write_checkpoint_file(temporary, checkpoint);
+  } catch (...) {
+    // A partial temporary (disk full, I/O error) is never read; removing it gives its space back.
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw;
+  }
   if (::rename(temporary.c_str(), final_path.c_str()) != 0) io_error(final_path, "cannot rename the checkpoint into place");
   sync_folder(folder);
 

@@ -156,6 +156,18 @@ void check_mass_properties(const Model& model) {
   }
 }
 
+/// The system's reason in an I/O error: HDF5 buries it in "..., error message = 'No space left
+/// on device', ..." after a time stamp and buffer addresses; the file and operation come first.
+std::string short_reason(const std::string& what) {
+  const std::string marker = "error message = '";
+  const auto at = what.find(marker);
+  if (at == std::string::npos) return what;
+  const auto end = what.find('\'', at + marker.size());
+  const std::string reason = what.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
+  const auto stamp = what.find(": time = ");
+  return (stamp == std::string::npos ? std::string() : what.substr(0, stamp) + ": ") + reason;
+}
+
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) { return run_scene(scene, scene.state, control); }
@@ -197,6 +209,22 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const auto total_steps = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(wanted_steps - 1e-9)));
   std::optional<RunFile> file;
   std::int64_t last_checkpoint_step = -1;
+  // Every write of the output goes through `output`: a failure (disk full, I/O error) stops the
+  // run with an OutputError that says where it stopped and what is left to resume from.
+  const auto output = [&](auto&& write) {
+    try {
+      write();
+    } catch (const std::runtime_error& error) {
+      const std::string resume =
+          last_checkpoint_step >= 0
+              ? fmt::format("the last checkpoint (step {}) is intact: free space (or fix the cause), then go on with "
+                            "rubble run --resume {}",
+                            last_checkpoint_step, directory.string())
+              : std::string("no checkpoint was written yet: free space (or fix the cause) and run again");
+      throw OutputError(fmt::format("writing the output failed at step {}: {}. The run stopped; {}", state.step,
+                                    short_reason(error.what()), resume));
+    }
+  };
   if (control.resume != nullptr) {
     const Checkpoint& from = *control.resume;
     if (from.state.body_count() != model.body_count()) {
@@ -219,11 +247,11 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     }
     last_checkpoint_step = state.step;
   } else {
-    file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names));
+    output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
     progress.first_step = state.step;
     progress.snapshot_period = snapshot_period(run, total_steps);
   }
-  file->hold_metadata_until_flush();
+  output([&] { file->hold_metadata_until_flush(); });
   progress.end_step = progress.first_step + total_steps;
   summary.first_step = state.step;
 
@@ -266,7 +294,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const auto start = Clock::now();
   auto last_progress = start;
   auto last_checkpoint_time = start;
-  if (control.resume == nullptr) file->write_snapshot(state, workspace.contacts);
+  if (control.resume == nullptr) output([&] { file->write_snapshot(state, workspace.contacts); });
 
   State before;  // the state at the start of the step, to locate a failure
   std::optional<double> potential;  // the grains' potential energy after the last step, J
@@ -297,7 +325,11 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (!problem) problem = check_state(model, state, h, control.max_speed);
     if (problem) {
       const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
-      file->flush();
+      try {
+        file->flush();  // what the run wrote up to the failure, if the disk takes it
+      } catch (const std::runtime_error&) {
+        // The numerical failure is the news; a run file that cannot be flushed is secondary.
+      }
       throw NumericalFailure(fmt::format(
           "step {} (t = {:.6g} s), stage {}: body {}: {}. The run stopped; the last checkpoint ({}) is intact.",
           state.step, state.time, stage, problem->body, problem->what,
@@ -347,7 +379,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       }
     }
     row.stage_seconds = report.stage_seconds;
-    file->append_series(row);
+    output([&] { file->append_series(row); });
 
     for (std::size_t s = 0; s < summary.stage_seconds.size(); ++s) summary.stage_seconds[s] += report.stage_seconds[s];
     summary.polish_attempts += report.solver.polish_attempts;
@@ -359,14 +391,14 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     const bool at_rest = run.until_rest && grain_count > 0 &&
                          rest.update(state.time, row.kinetic_energy / static_cast<double>(grain_count));
     const bool at_end = state.step == progress.end_step || at_rest;
-    if (done % progress.snapshot_period == 0 || at_end) file->write_snapshot(state, workspace.contacts);
+    if (done % progress.snapshot_period == 0 || at_end) output([&] { file->write_snapshot(state, workspace.contacts); });
 
     const bool stop = control.stop_requested != nullptr && control.stop_requested->load(std::memory_order_relaxed) != 0;
     const bool by_steps = control.checkpoint_every_steps > 0 && done % control.checkpoint_every_steps == 0;
     const bool by_time =
         control.checkpoint_interval > 0.0 && seconds_between(last_checkpoint_time, step_end) >= control.checkpoint_interval;
     if (stop || by_steps || by_time || at_end) {
-      write_checkpoint_now();
+      output(write_checkpoint_now);
       last_checkpoint_time = Clock::now();
     }
 
@@ -405,8 +437,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       break;
     }
   }
-  if (last_checkpoint_step != state.step) write_checkpoint_now();  // e.g. a run of zero steps
-  file->flush();
+  if (last_checkpoint_step != state.step) output(write_checkpoint_now);  // e.g. a run of zero steps
+  output([&] { file->flush(); });
 
   summary.final_step = state.step;
   summary.steps = state.step - summary.first_step;

@@ -20,6 +20,14 @@ struct NumericalFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Writing the run's output failed (disk full, I/O error, folder removed): the run stopped.
+/// what() names the file, the system's reason, the step, and the last checkpoint, which is left
+/// intact (a failed checkpoint write removes its temporary file), so that the run can go on with
+/// `rubble run --resume DIR` once the cause is fixed.
+struct OutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// What the caller of run_scene controls besides the scene.
 struct RunControl {
   std::ostream* progress = nullptr;  ///< where progress lines go (nullptr: silent)
@@ -78,7 +86,8 @@ struct RunSummary {
 /// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory, which it locks
 /// first (simulation/output_lock.hpp: OutputFolderBusy if another process runs there,
 /// OutputFolderError if it cannot be made; nothing is opened before). Throws
-/// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors,
+/// NumericalFailure on a non-finite or runaway state, OutputError when writing the run file or a
+/// checkpoint fails (std::runtime_error on other I/O errors),
 /// CheckpointError if control.resume does not fit the scene or the run file, and
 /// std::invalid_argument (before writing anything) if a grain's mass, inertia or size is not
 /// finite and positive.

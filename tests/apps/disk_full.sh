@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# A full disk (issue 17), on a small tmpfs: `rubble run` stops with exit code 4 and a message
+# naming the file and "No space left on device", without crashing (HDF5 used to SIGSEGV at exit);
+# when the disk fills mid-run, the last checkpoint is intact, no partial temporary is left, and
+# once space is freed `rubble run --resume` goes on (run.h5, damaged by the failed write, is moved
+# aside and the series continues in a new run.h5) to the same final state as an uninterrupted run.
+#
+# Needs root (mount); otherwise it says so and exits 77, which CTest reports as skipped.
+#
+# usage: disk_full.sh RUBBLE SCENE WORKDIR
+set -u
+rubble=$1 scene=$2 work=$3
+if [ "$(id -u)" != 0 ]; then
+  echo "disk_full: SKIPPED: needs root to mount a small tmpfs"
+  exit 77
+fi
+mkdir -p "$work"
+disk=$work/disk
+mkdir -p "$disk"
+umount "$disk" 2> /dev/null
+cleanup() { umount "$disk" 2> /dev/null; }
+trap cleanup EXIT
+if ! mount -t tmpfs -o size=64k tmpfs "$disk" 2> "$work/mount.log"; then
+  echo "disk_full: SKIPPED: cannot mount a tmpfs here: $(cat "$work/mount.log")"
+  exit 77
+fi
+fail() {
+  echo "disk_full: FAILED: $*"
+  for log in "$work"/*.log; do echo "--- $log"; head -c 3000 "$log"; done
+  exit 1
+}
+no_crash() {
+  if grep -qE "Segmentation fault|HDF5-DIAG|terminate called|Aborted" "$1"; then fail "crash or HDF5 error stack in $1"; fi
+}
+export OMP_NUM_THREADS=1
+
+# 1. Full at the first write of run.h5 (64 KiB).
+"$rubble" run "$scene" --out "$disk/run" -q > "$work/tiny.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "disk full at the first write: exit $code, expected 4"
+grep -qF "No space left on device" "$work/tiny.log" || fail "the message does not say the disk is full"
+grep -qF "rubble run: output failure: writing the output failed at step" "$work/tiny.log" || fail "no output-failure message"
+no_crash "$work/tiny.log"
+echo "disk_full: full at the first write: exit 4, $(head -c 200 "$work/tiny.log")"
+
+# 2. Full mid-run (400 KiB), with checkpoints every 200 steps.
+umount "$disk" && mount -t tmpfs -o size=400k tmpfs "$disk" || fail "cannot remount"
+options=(--end-time 2 --checkpoint-every 200 -q)
+"$rubble" run "$scene" --out "$disk/run" "${options[@]}" > "$work/midrun.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "disk full mid-run: exit $code, expected 4"
+no_crash "$work/midrun.log"
+step=$(grep -o 'the last checkpoint (step [0-9]*) is intact' "$work/midrun.log" | grep -o '[0-9]*')
+[ -n "$step" ] || fail "the message does not name an intact checkpoint"
+newest=$(ls "$disk/run/checkpoints/" | grep -v '\.tmp$' | tail -1)
+[ "$newest" = "$(printf 'step-%012d.ckpt' "$step")" ] || fail "newest checkpoint $newest, the message says step $step"
+if ls "$disk/run/checkpoints/" | grep -q '\.tmp$'; then fail "a partial .tmp checkpoint was left"; fi
+echo "disk_full: full mid-run: exit 4, checkpoint of step $step intact"
