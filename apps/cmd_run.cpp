@@ -166,6 +166,7 @@ int run_command(const RunArguments& args) {
 
   std::ostream* progress = args.quiet ? nullptr : &std::cout;
   control.progress = progress;
+  control.warnings = &std::cerr;
   if (progress) {
     *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
               << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")

@@ -187,10 +187,10 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   // The folder is ours before anything in it is opened or truncated (output_lock.hpp), and stays
   // ours until the run file is closed: the lock is declared before `file`, so it outlives it.
   const OutputFolderLock lock = OutputFolderLock::acquire(directory);
-  if (lock.taken_over_from() && control.progress) {
-    *control.progress << fmt::format("rubble run: {}: took over the stale lock of pid {} (that run is gone)\n",
+  if (lock.taken_over_from() && control.warnings) {
+    *control.warnings << fmt::format("rubble run: {}: took over the stale lock of pid {} (that run is gone)\n",
                                      lock.file().string(), *lock.taken_over_from());
-    control.progress->flush();
+    control.warnings->flush();
   }
   summary.run_file = directory / "run.h5";
   const fs::path checkpoints = checkpoint_folder(directory);
@@ -237,7 +237,41 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     workspace.held_gravity = from.held_gravity;
     workspace.held_gravity_step = from.held_gravity_step;
     progress = from.progress;  // the snapshot period stays that of the first session
-    file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
+    last_checkpoint_step = state.step;
+    std::string unusable;  // why run.h5 cannot be reopened ("" when it can)
+    if (!fs::exists(summary.run_file)) {
+      unusable = "it is missing";
+    } else {
+      try {
+        file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
+      } catch (const std::runtime_error& error) {
+        file.reset();
+        unusable = short_reason(error.what());
+      }
+    }
+    if (!unusable.empty()) {
+      // The checkpoint holds everything the run needs; run.h5 only holds its history. A run file
+      // damaged by a failed write (disk full) or a crash during a flush, or deleted, must not
+      // block the run: it is moved aside and the series goes on in a new run.h5 that starts at
+      // the checkpoint (a snapshot of its state, then a row per step after it).
+      fs::path aside;
+      if (fs::exists(summary.run_file)) {
+        aside = directory / fmt::format("run.h5.damaged-at-step-{}", state.step);
+        std::error_code ignored;
+        fs::rename(summary.run_file, aside, ignored);
+      }
+      output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
+      output([&] { file->write_snapshot(state, workspace.contacts); });
+      progress.series_rows = 0;
+      progress.snapshots = file->snapshot_count();
+      if (control.warnings) {
+        *control.warnings << fmt::format(
+            "rubble run: warning: {} cannot be reopened ({}){}; the series goes on in a new {} from step {} (its "
+            "first snapshot is the checkpoint's state)\n",
+            summary.run_file.string(), unusable, aside.empty() ? "" : "; moved to " + aside.string(),
+            summary.run_file.string(), state.step);
+      }
+    }
     if (file->series_rows() != progress.series_rows || file->snapshot_count() != progress.snapshots) {
       throw CheckpointError(fmt::format(
           "{}: has {} series rows and {} snapshots up to step {}, the checkpoint expects {} and {}: the run file "
@@ -245,7 +279,6 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
           summary.run_file.string(), file->series_rows(), file->snapshot_count(), state.step, progress.series_rows,
           progress.snapshots));
     }
-    last_checkpoint_step = state.step;
   } else {
     output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
     progress.first_step = state.step;

@@ -31,6 +31,9 @@ struct OutputError : std::runtime_error {
 /// What the caller of run_scene controls besides the scene.
 struct RunControl {
   std::ostream* progress = nullptr;  ///< where progress lines go (nullptr: silent)
+  /// Where notes that matter even in a quiet run go (a stale lock taken over, a damaged run file
+  /// set aside on resume); nullptr: nowhere.
+  std::ostream* warnings = nullptr;
   std::string scene_text;            ///< the scene as TOML, stored in the run file and the checkpoints
   std::string scene_source;          ///< the name the scene was parsed under (saved for resuming)
 
@@ -55,7 +58,9 @@ struct RunControl {
   /// Resume from this checkpoint instead of the scene's initial state (nullptr: a new run). The
   /// scene must be the checkpoint's (parsed from its scene_text); run.end_time may differ from
   /// the checkpoint's to extend or shorten the run. The run file DIR/run.h5 is reopened and cut
-  /// back to the checkpoint's step.
+  /// back to the checkpoint's step; when it is missing or cannot be reopened (damaged), it is
+  /// moved to DIR/run.h5.damaged-at-step-K and the series goes on in a new DIR/run.h5 whose first
+  /// snapshot is the checkpoint's state (a note goes to `warnings`).
   const Checkpoint* resume = nullptr;
 };
 
