@@ -116,9 +116,15 @@ int fclib_command(FclibArguments& args) {
   if (!args.output.empty()) {
     try {
       write_fclib_solution(args.output, solution.r, solution.u);
+      // Read back: HDF5 may buffer the data until the file's close, where a full disk goes
+      // unreported; a solution file that does not read back equal was not written.
+      std::vector<double> r, u;
+      read_fclib_solution(args.output, r, u);
+      if (r != solution.r || u != solution.u) throw FclibFileError(args.output + ": the solution did not read back equal");
     } catch (const FclibFileError& e) {
-      std::cerr << "rubble fclib: error: " << e.what() << "\n";
-      return exit_failure;
+      std::cerr << "rubble fclib: output failure: cannot write the solution: " << e.what()
+                << " (disk full or I/O error?)\n";
+      return exit_output_failure;
     }
   }
   const nlohmann::json line = {{"file", args.input},

@@ -202,8 +202,8 @@ int gravity_command(const GravityArguments& args) {
     if (!args.output.empty()) {
       Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
       if (!out) {
-        std::cerr << "rubble gravity: error: " << args.output << ": cannot create the output file\n";
-        return exit_failure;
+        std::cerr << "rubble gravity: output failure: " << args.output << ": cannot create the output file\n";
+        return exit_output_failure;
       }
       try {
         write_dataset(out.get(), args.output, "accelerations", {n, 3}, acc);
@@ -212,9 +212,13 @@ int gravity_command(const GravityArguments& args) {
         write_attribute(out.get(), "theta", options.theta);
         write_attribute(out.get(), "order", options.order);
         write_attribute(out.get(), "softening_length", args.softening);
+        // HDF5 buffers the data; a full disk shows only when it is flushed and closed.
+        if (H5Fflush(out.get(), H5F_SCOPE_LOCAL) < 0 || out.reset() < 0) {
+          throw std::runtime_error(args.output + ": cannot flush the output file (disk full or I/O error?)");
+        }
       } catch (const std::runtime_error& e) {
-        std::cerr << "rubble gravity: error: " << e.what() << "\n";
-        return exit_failure;
+        std::cerr << "rubble gravity: output failure: " << e.what() << "\n";
+        return exit_output_failure;
       }
     }
     nlohmann::json line = {{"N", n},

@@ -88,6 +88,9 @@ int post_command(const PostArguments& args) {
     options.histogram_bins = args.bins;
     options.log = log;
     post_process_run(run, options);
+  } catch (const PostOutputError& e) {
+    std::cerr << "rubble post: output failure: " << e.what() << "\n";
+    return exit_output_failure;
   } catch (const NonFiniteResult& e) {
     std::cerr << "rubble post: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;

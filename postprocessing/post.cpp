@@ -4,7 +4,9 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <numeric>
@@ -28,7 +30,7 @@ namespace fs = std::filesystem;
 class CsvWriter {
  public:
   CsvWriter(const fs::path& path, const std::vector<std::string>& header) : path_(path), out_(path) {
-    if (!out_) throw std::runtime_error(path.string() + ": cannot create the file");
+    if (!out_) throw PostOutputError(path.string() + ": cannot create the file: " + std::strerror(errno));
     for (std::size_t k = 0; k < header.size(); ++k) out_ << (k ? "," : "") << header[k];
     out_ << "\n";
   }
@@ -46,7 +48,7 @@ class CsvWriter {
   }
   void close() {
     out_.close();
-    if (!out_) throw std::runtime_error(path_.string() + ": cannot write the file");
+    if (!out_) throw PostOutputError(path_.string() + ": cannot write the file: " + std::strerror(errno));
   }
 
  private:
@@ -166,7 +168,7 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   const fs::path out = options.output_directory;
   std::error_code error;
   fs::create_directories(out, error);
-  if (error) throw std::runtime_error(out.string() + ": cannot create the folder: " + error.message());
+  if (error) throw PostOutputError(out.string() + ": cannot create the folder: " + error.message());
   std::vector<fs::path> written;
   std::int64_t grains = 0;
   for (std::size_t i = 0; i < model.body_count(); ++i) grains += model.is_grain(i) ? 1 : 0;
@@ -228,7 +230,11 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
     csv.close();
     written.push_back(path);
   }
-  write_metrics_hdf5(out / "metrics.h5", run_file, rows, histogram);
+  try {
+    write_metrics_hdf5(out / "metrics.h5", run_file, rows, histogram);
+  } catch (const std::runtime_error& error) {
+    throw PostOutputError(error.what());
+  }
   written.push_back(out / "metrics.h5");
   if (vtk) {
     for (const fs::path& collection : vtk->collections()) written.push_back(collection);
@@ -265,7 +271,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   const fs::path out = options.output_directory;
   std::error_code error;
   fs::create_directories(out, error);
-  if (error) throw std::runtime_error(out.string() + ": cannot create the folder: " + error.message());
+  if (error) throw PostOutputError(out.string() + ": cannot create the folder: " + error.message());
 
   const fs::path path = out / "study.csv";
   CsvWriter csv(path, {"run", "shape", "grains", "friction", "snapshots_used", "window_start", "Z_max",

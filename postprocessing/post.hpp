@@ -20,6 +20,12 @@ struct NonFiniteResult : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// An output file of `rubble post` could not be written (disk full, I/O error, no permission):
+/// `rubble post` reports it with exit code 4. what() names the file and the reason.
+struct PostOutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// What post_process_run does.
 struct PostOptions {
   std::filesystem::path output_directory;  ///< where everything goes (created if missing)

@@ -7,9 +7,9 @@
 #
 # Needs root (mount); otherwise it says so and exits 77, which CTest reports as skipped.
 #
-# usage: disk_full.sh RUBBLE SCENE WORKDIR
+# usage: disk_full.sh RUBBLE SCENE WORKDIR GENERATED   (GENERATED: make_inputs.py's folder)
 set -u
-rubble=$1 scene=$2 work=$3
+rubble=$1 scene=$2 work=$3 generated=$4
 if [ "$(id -u)" != 0 ]; then
   echo "disk_full: SKIPPED: needs root to mount a small tmpfs"
   exit 77
@@ -83,3 +83,29 @@ print(f"new run.h5: first snapshot at step {first}, series rows {steps[0]}..{ste
 PY
 grep -qF "cannot be reopened" "$work/resume.log" || fail "no warning that run.h5 was set aside"
 echo "disk_full: resumed after freeing space to hash $(hash_of "$work/resume.log") (= uninterrupted); 3 passed, 0 failed"
+
+# 4. The other commands' outputs on a full disk: exit 4 naming the file, no crash, no exit 0.
+umount "$disk" && mount -t tmpfs -o size=256k tmpfs "$disk" || fail "cannot remount"
+dd if=/dev/zero of="$disk/filler" bs=4k 2> /dev/null  # until the disk is full
+"$rubble" run "$scene" --out "$work/small" -q --end-time 0.01 > "$work/small.log" 2>&1 || fail "a small run for post"
+"$rubble" post "$work/small/run.h5" --no-plots -q -o "$disk/post" > "$work/post_full.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "rubble post onto a full disk: exit $code, expected 4"
+grep -qF "rubble post: output failure:" "$work/post_full.log" || fail "rubble post: no output-failure message"
+"$rubble" pack cubic-grid --n 8 --dmin 0.01 --dmax 0.02 --density 2500 -o "$disk/pack.toml" > "$work/pack_full.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "rubble pack onto a full disk: exit $code, expected 4"
+/usr/bin/python3 -c "
+import h5py, numpy as np
+with h5py.File('$work/particles.h5', 'w') as f:
+    f['positions'] = np.random.default_rng(1).uniform(-1, 1, (2000, 3))
+    f['masses'] = np.ones(2000)
+" || fail "cannot make a particle file"
+"$rubble" gravity "$work/particles.h5" --out "$disk/field.h5" > "$work/gravity_full.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "rubble gravity onto a full disk: exit $code, expected 4"
+"$rubble" fclib "$generated/fclib_good.hdf5" --out "$disk/solution.h5" > "$work/fclib_full.log" 2>&1
+code=$?
+[ "$code" = 4 ] || fail "rubble fclib onto a full disk: exit $code, expected 4"
+for log in post_full pack_full gravity_full fclib_full; do no_crash "$work/$log.log"; done
+echo "disk_full: post, pack, gravity and fclib onto a full disk: exit 4 each; 4 passed, 0 failed"
