@@ -81,6 +81,20 @@ def nan_run(out, rubble, scene):
         position[...] = x
 
 
+def flipped_run(out):
+    """The real run of nan_run with one bit flipped inside a snapshot's position data: the
+    dataset's Fletcher-32 checksum must catch it when the run file is read."""
+    os.makedirs(f"{out}/flipped_run", exist_ok=True)
+    shutil.copy(f"{out}/nan_run_source/run.h5", f"{out}/flipped_run/run.h5")
+    with h5py.File(f"{out}/flipped_run/run.h5", "r") as f:
+        offset = f["snapshots/000003/position"].id.get_chunk_info(0).byte_offset
+    with open(f"{out}/flipped_run/run.h5", "r+b") as f:
+        f.seek(offset + 5)
+        byte = f.read(1)[0]
+        f.seek(offset + 5)
+        f.write(bytes([byte ^ 0x10]))
+
+
 def main(out, rubble=None):
     os.makedirs(out, exist_ok=True)
     rng = np.random.default_rng(1)
@@ -171,6 +185,7 @@ def main(out, rubble=None):
 
     if rubble is not None:
         nan_run(out, rubble, os.path.join(os.path.dirname(os.path.abspath(__file__)), "inputs", "small_drop.toml"))
+        flipped_run(out)
 
 
 if __name__ == "__main__":
