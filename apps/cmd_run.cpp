@@ -64,6 +64,7 @@ struct RunArguments {
   std::string scene_path;
   std::string output_directory;
   std::string resume_directory;
+  std::int64_t from_step = -1;  ///< --from-step: resume from this checkpoint instead of the newest
   double end_time = 0.0;
   std::int64_t checkpoint_every = 0;
   double checkpoint_minutes = 10.0;
@@ -114,10 +115,27 @@ int run_command(const RunArguments& args) {
       if (!args.output_directory.empty()) {
         return bad_input("--out cannot be used with --resume (the run goes on in the folder it resumes)");
       }
+    } else if (args.from_step >= 0) {
+      return bad_input("--from-step is used with --resume DIR");
+    }
+    if (resuming) {
       if (!std::filesystem::is_directory(args.resume_directory)) {
         return bad_input(args.resume_directory + ": no such run folder to resume");
       }
-      loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+      if (args.from_step >= 0) {
+        const std::filesystem::path folder = checkpoint_folder(args.resume_directory);
+        const std::filesystem::path file = folder / fmt::format("step-{:012}.ckpt", args.from_step);
+        if (!std::filesystem::is_regular_file(file)) {
+          std::string steps;
+          for (const auto& path : list_checkpoints(folder)) steps += fmt::format(" {}", checkpoint_step(path));
+          return bad_input(fmt::format("--from-step {}: no checkpoint of that step in {} (checkpoints at steps:{})",
+                                       args.from_step, folder.string(), steps.empty() ? " none" : steps));
+        }
+        loaded.checkpoint = read_checkpoint(file);
+        loaded.file = file;
+      } else {
+        loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+      }
       for (const std::string& reason : loaded.rejected) std::cerr << "rubble run: warning: skipped " << reason << "\n";
       const Checkpoint& checkpoint = loaded.checkpoint;
       control.scene_text = checkpoint.scene_text;
@@ -262,6 +280,11 @@ void register_run_command(CLI::App& app) {
   run->add_option("--resume", args->resume_directory,
                   "Go on with the run in DIR from its newest valid checkpoint (DIR/checkpoints)")
       ->type_name("DIR");
+  run->add_option("--from-step", args->from_step,
+                  "With --resume: go on from the checkpoint of step K instead of the newest (later ones are set "
+                  "aside; [output] keep_checkpoint_every keeps older ones)")
+      ->check(count)
+      ->type_name("K");
   run->add_option("--checkpoint-every", args->checkpoint_every, "Write a checkpoint every N steps (default 0: off)")
       ->check(count);
   run->add_option("--checkpoint-minutes", args->checkpoint_minutes,

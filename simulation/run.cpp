@@ -238,6 +238,15 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     workspace.held_gravity_step = from.held_gravity_step;
     progress = from.progress;  // the snapshot period stays that of the first session
     last_checkpoint_step = state.step;
+    // Resumed from an earlier checkpoint (--from-step, or newer ones damaged): the later ones
+    // belong to the history this run now replaces; set aside, they are neither kept by the
+    // retention as "newest" nor picked by a later --resume.
+    const std::vector<fs::path> superseded = set_aside_checkpoints_after(checkpoints, state.step);
+    if (!superseded.empty() && control.warnings) {
+      *control.warnings << fmt::format("rubble run: note: {} later checkpoint(s) set aside as *.ckpt.superseded (the run "
+                                       "goes on from step {})\n",
+                                       superseded.size(), state.step);
+    }
     std::string unusable;  // why run.h5 cannot be reopened ("" when it can)
     if (!fs::exists(summary.run_file)) {
       unusable = "it is missing";
@@ -316,7 +325,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
                                     run.seed,                   state,                  workspace.contacts,
                                     workspace.detection_memory, progress,               saved_rest,
                                     workspace.held_gravity,     workspace.held_gravity_step};
-    summary.last_checkpoint = write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept);
+    summary.last_checkpoint =
+        write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept, run.output.keep_checkpoint_every);
     last_checkpoint_step = state.step;
   };
 

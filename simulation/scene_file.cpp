@@ -657,7 +657,8 @@ class SceneParser {
   void parse_output() {
     const auto output = root_.optional_table("output");
     if (!output) return;
-    output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk"},
+    output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk",
+                        "keep_checkpoint_every"},
                        "in [output]");
     auto& options = scene_.run.output;
     if (const auto directory = output->optional_string("directory")) {
@@ -672,6 +673,8 @@ class SceneParser {
     }
     options.progress_interval = output->number_or("progress_interval", options.progress_interval, non_negative());
     options.write_vtk = output->boolean_or("vtk", options.write_vtk);
+    options.keep_checkpoint_every =
+        output->integer_or("keep_checkpoint_every", 0, 0, std::numeric_limits<std::int64_t>::max());
   }
 
   void parse_materials() {
@@ -1530,6 +1533,7 @@ std::string scene_to_toml(const Scene& scene) {
   }
   out << "progress_interval = " << format_number(output.progress_interval) << "\n";
   out << "vtk = " << (output.write_vtk ? "true" : "false") << "\n";
+  if (output.keep_checkpoint_every > 0) out << "keep_checkpoint_every = " << output.keep_checkpoint_every << "\n";
 
   for (const Material& material : model.materials) {
     out << "\n[[materials]]\nname = " << toml_string(material.name) << "\ndensity = " << format_number(material.density)
