@@ -24,6 +24,7 @@
 
 #include "apps/commands.hpp"
 #include "gravity/gravity.hpp"
+#include "simulation/memory_estimate.hpp"
 
 namespace rubble::apps {
 namespace {
@@ -79,7 +80,15 @@ std::vector<double> read_dataset(hid_t file, const std::string& path, const std:
   dims.assign(static_cast<std::size_t>(rank), 0);
   if (rank > 0) H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
   hsize_t count = 1;
-  for (hsize_t d : dims) count *= d;
+  for (hsize_t d : dims) count = d == 0 ? 0 : (count > ~hsize_t{0} / d ? ~hsize_t{0} : count * d);
+  // A dataset's shape costs nothing on disk (chunked, never written): check that it fits in
+  // memory before allocating it (simulation/memory_estimate.hpp).
+  const double bytes = 8.0 * static_cast<double>(count);
+  if (const double available = available_memory(); available > 0.0 && bytes > 0.5 * available) {
+    throw BadInput(fmt::format("{}: dataset '{}' has {} values ({:.3g} GB as doubles), more than half of the "
+                               "{:.3g} GB of memory this process may use",
+                               path, name, count, bytes / 1e9, available / 1e9));
+  }
   std::vector<double> values(static_cast<std::size_t>(count));
   if (count > 0 &&
       H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)

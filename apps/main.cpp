@@ -1,6 +1,7 @@
 // rubble: Contact Dynamics for gravitational aggregates. Subcommands live in cmd_<name>.cpp.
 #include <cstdlib>
 #include <exception>
+#include <new>
 #include <iostream>
 
 #include "apps/commands.hpp"
@@ -36,6 +37,10 @@ int main(int argc, char** argv) {
     // CLI11 prints usage errors; bad arguments are bad input.
     const int code = app.exit(e);
     return code == 0 ? 0 : rubble::apps::exit_bad_input;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "rubble: error: out of memory: the input needs more memory than this process may use "
+                 "(physical memory, cgroup or ulimit)\n";
+    return rubble::apps::exit_failure;
   } catch (const std::exception& e) {
     std::cerr << "rubble: error: " << e.what() << "\n";
     return rubble::apps::exit_failure;

@@ -162,6 +162,11 @@ def main(out, rubble=None):
     heavy = m.copy()
     heavy[7] = 1e300
     gravity_file(f"{out}/huge_mass.h5", x, heavy)
+    # A dataset whose shape asks for 10^12 x 3 doubles (24 TB) in a file of a few kB: chunked and
+    # never written, so it costs no disk; it must be refused before any allocation.
+    with h5py.File(f"{out}/huge_shape.h5", "w") as f:
+        f.create_dataset("positions", shape=(10**12, 3), dtype="f8", chunks=(1024, 3))
+        f.create_dataset("masses", shape=(10**12,), dtype="f8", chunks=(1024,))
 
     # A convex polyhedron of 10^5 vertices (checked on its hull in about a second; it took 233 s
     # when every face was compared with every vertex), and a large one with a vertex pushed out.
