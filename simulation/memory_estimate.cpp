@@ -38,8 +38,22 @@ double available_memory() {
   const long pages = ::sysconf(_SC_PHYS_PAGES);
   const long page_size = ::sysconf(_SC_PAGE_SIZE);
   if (pages > 0 && page_size > 0) consider(static_cast<double>(pages) * static_cast<double>(page_size));
+  // The cgroup's limit, where the cgroup file system shows this process's group at its root (a
+  // container's namespace) or at the path /proc/self/cgroup names (v2: "0::/path", v1:
+  // "N:memory:/path").
   consider(cgroup_limit("/sys/fs/cgroup/memory.max"));
   consider(cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"));
+  std::ifstream groups("/proc/self/cgroup");
+  for (std::string line; std::getline(groups, line);) {
+    const auto colon = line.find(':');
+    const auto second = line.find(':', colon + 1);
+    if (colon == std::string::npos || second == std::string::npos) continue;
+    const std::string controllers = line.substr(colon + 1, second - colon - 1);
+    const std::string path = line.substr(second + 1);
+    if (path.empty() || path == "/" || path.find("..") != std::string::npos) continue;
+    if (controllers.empty()) consider(cgroup_limit(("/sys/fs/cgroup" + path + "/memory.max").c_str()));
+    if (controllers == "memory") consider(cgroup_limit(("/sys/fs/cgroup/memory" + path + "/memory.limit_in_bytes").c_str()));
+  }
   for (const int resource : {RLIMIT_AS, RLIMIT_DATA}) {
     struct rlimit value {};
     if (::getrlimit(resource, &value) == 0 && value.rlim_cur != RLIM_INFINITY) consider(static_cast<double>(value.rlim_cur));
