@@ -75,6 +75,11 @@ int post_command(const PostArguments& args) {
       return exit_ok;
     }
     const std::filesystem::path run(args.run_file);
+    std::error_code error;
+    if (std::filesystem::is_directory(run, error)) {
+      std::cerr << "rubble post: error: " << run.string() << ": is a folder, expected a run file (DIR/run.h5)\n";
+      return exit_bad_input;
+    }
     PostOptions options;
     {
       const RunReader reader = RunReader::open(run);

@@ -272,7 +272,8 @@ void register_run_command(CLI::App& app) {
   };
   const auto positive = number("a finite number > 0", [](double v) { return v > 0.0; });
   const auto non_negative = number("a finite number >= 0", [](double v) { return v >= 0.0; });
-  const auto count = number("an integer >= 0", [](double v) { return v >= 0.0 && v == std::floor(v); });
+  // Below 2^62: a count must fit the 64-bit step counters with room to add to them.
+  const auto count = number("an integer >= 0 and < 2^62", [](double v) { return v >= 0.0 && v == std::floor(v) && v < 0x1p62; });
   CLI::Option* scene_option = run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
   run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
