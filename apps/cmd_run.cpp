@@ -110,15 +110,12 @@ int run_command(const RunArguments& args) {
   LoadedCheckpoint loaded;
   const bool resuming = !args.resume_directory.empty();
   try {
+    if (!resuming && args.from_step >= 0) return bad_input("--from-step is used with --resume DIR");
     if (resuming) {
       if (!args.scene_path.empty()) return bad_input("give a scene file or --resume DIR, not both");
       if (!args.output_directory.empty()) {
         return bad_input("--out cannot be used with --resume (the run goes on in the folder it resumes)");
       }
-    } else if (args.from_step >= 0) {
-      return bad_input("--from-step is used with --resume DIR");
-    }
-    if (resuming) {
       if (!std::filesystem::is_directory(args.resume_directory)) {
         return bad_input(args.resume_directory + ": no such run folder to resume");
       }
