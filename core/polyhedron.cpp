@@ -289,7 +289,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
   // --- faces: normals, convexity, supporting planes ---
   // Every vertex must lie below every face's plane. Large meshes find each face's highest vertex
   // on the convex hull instead of scanning all vertices (O(V log V) instead of O(F V): 10^5
-  // vertices took 233 s, now a second); the check and the offsets are the same.
+  // vertices: 61 s of CPU, now 2.4 s, bench/RESULTS.md); the check and the offsets are the same.
   const bool use_hull = shape.vertices.size() >= hull_check_min_vertices;
   const HullGraph hull = use_hull ? hull_graph(shape.vertices) : HullGraph{};
   shape.face_normals.reserve(shape.faces.size());
