@@ -3,9 +3,15 @@
 // with the simulation's NLGS sweep and local solver (plus the optional Newton polish), writes r
 // and u to SOL.h5 (datasets `r`, `u`) and prints one JSON line: file, contacts, iterations, error
 // (||F||/||q||, natural map), seconds, converged.
-// Invalid input -> message on stderr naming the file and dataset, exit code 2.
+// Invalid input -> message on stderr naming the file and dataset, exit code 2. A contact whose
+// Delassus diagonal W_nn is not positive is invalid input (the local solver divides by it; a
+// zero diagonal is a contact between two bodies of infinite mass). A non-finite r, u or error
+// after the solve is a numerical failure: exit code 3 naming the contact, and no solution file.
 #include <chrono>
+#include <cmath>
+#include <fmt/format.h>
 #include <iostream>
+#include <optional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -25,12 +31,53 @@ struct FclibArguments {
   LocalProblemOptions options;
 };
 
+/// The first contact whose normal Delassus diagonal W_nn (row and column 3k) is missing, zero or
+/// negative, with that value.
+std::optional<std::string> bad_diagonal(const LocalProblem& problem) {
+  const SparseMatrix& W = problem.W;
+  for (std::size_t k = 0; k < problem.contact_count(); ++k) {
+    const std::size_t row = 3 * k;
+    double diagonal = 0.0;
+    if (row + 1 < W.row_start.size()) {
+      for (int e = W.row_start[row]; e < W.row_start[row + 1]; ++e) {
+        if (static_cast<std::size_t>(W.column[static_cast<std::size_t>(e)]) == row) {
+          diagonal += W.value[static_cast<std::size_t>(e)];
+        }
+      }
+    }
+    if (!(diagonal > 0.0)) {
+      return fmt::format("contact {}: W[{}][{}] (its normal Delassus diagonal) is {}: expected > 0 (W is positive "
+                         "definite on each contact; 0 is a contact between bodies of infinite mass)",
+                         k, row, row, diagonal);
+    }
+  }
+  return std::nullopt;
+}
+
+/// The first non-finite entry of the solution, as "r[3k+i] of contact k = value".
+std::optional<std::string> non_finite_solution(const LocalProblemSolution& solution) {
+  const char* axis[] = {"normal", "t", "s"};
+  for (const auto& [name, values] : {std::pair{"r (impulse)", &solution.r}, std::pair{"u (velocity)", &solution.u}}) {
+    for (std::size_t i = 0; i < values->size(); ++i) {
+      if (!std::isfinite((*values)[i])) {
+        return fmt::format("contact {}: {} {} component is {}", i / 3, name, axis[i % 3], (*values)[i]);
+      }
+    }
+  }
+  if (!std::isfinite(solution.error)) return fmt::format("the error ||F||/||q|| is {}", solution.error);
+  return std::nullopt;
+}
+
 int fclib_command(FclibArguments& args) {
   LocalProblem problem;
   try {
     problem = read_fclib_local(args.input);
   } catch (const FclibFileError& e) {
     std::cerr << "rubble fclib: error: " << e.what() << "\n";
+    return exit_bad_input;
+  }
+  if (const auto problem_text = bad_diagonal(problem)) {
+    std::cerr << "rubble fclib: error: " << args.input << ": " << *problem_text << "\n";
     return exit_bad_input;
   }
   LocalProblemOptions& options = args.options;
@@ -60,13 +107,24 @@ int fclib_command(FclibArguments& args) {
     return exit_bad_input;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (const auto what = non_finite_solution(solution)) {
+    std::cerr << "rubble fclib: numerical failure: " << args.input << ": after " << solution.iterations
+              << " sweeps: " << *what << "; no solution written\n";
+    return exit_numerical_failure;
+  }
 
   if (!args.output.empty()) {
     try {
       write_fclib_solution(args.output, solution.r, solution.u);
+      // Read back: HDF5 may buffer the data until the file's close, where a full disk goes
+      // unreported; a solution file that does not read back equal was not written.
+      std::vector<double> r, u;
+      read_fclib_solution(args.output, r, u);
+      if (r != solution.r || u != solution.u) throw FclibFileError(args.output + ": the solution did not read back equal");
     } catch (const FclibFileError& e) {
-      std::cerr << "rubble fclib: error: " << e.what() << "\n";
-      return exit_failure;
+      std::cerr << "rubble fclib: output failure: cannot write the solution: " << e.what()
+                << " (disk full or I/O error?)\n";
+      return exit_output_failure;
     }
   }
   const nlohmann::json line = {{"file", args.input},

@@ -3,7 +3,10 @@
 // with rubble::gravity, optionally writes `accelerations` (N x 3) and `potential` (N) to OUT.h5,
 // and prints one JSON line (N, method, backend, theta, order, threads, build/walk/total seconds).
 // Invalid input, or a backend that cannot run here (--backend cuda without a GPU), -> message on
-// stderr naming the file or option and the problem, exit code 2.
+// stderr naming the file or option and the problem, exit code 2; that includes coordinates or
+// masses so large that the field would overflow (see max_coordinate). A non-finite acceleration
+// or potential in the result is a numerical failure: exit code 3 naming the particle, no output
+// file.
 
 #include "core/hdf5_io.hpp"
 #include <omp.h>
@@ -11,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -20,6 +24,7 @@
 
 #include "apps/commands.hpp"
 #include "gravity/gravity.hpp"
+#include "simulation/memory_estimate.hpp"
 
 namespace rubble::apps {
 namespace {
@@ -46,6 +51,18 @@ struct BadInput : std::runtime_error {
 using hdf5::Handle;
 using QuietHdf5 = hdf5::QuietErrors;
 
+/// Bounds on |coordinate| (m) and on mass (kg) in the input: the tree's quadrupole moments grow as
+/// m r^2 and are summed over N particles, and the field as G M / r^2; with |x| and m at most 1e60
+/// those stay below 1e200 for any N a machine holds, where 1e308 overflows. The observable
+/// universe is about 1e27 m across and 1e53 kg, so no physical input comes near.
+constexpr double max_coordinate = 1e60;
+constexpr double max_mass = 1e60;
+
+/// A non-finite field: reported on stderr, exit code 3.
+struct NonFiniteField : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// Reads a numeric dataset as doubles and returns its dimensions. Throws BadInput.
 std::vector<double> read_dataset(hid_t file, const std::string& path, const std::string& name,
                                  std::vector<hsize_t>& dims) {
@@ -63,7 +80,15 @@ std::vector<double> read_dataset(hid_t file, const std::string& path, const std:
   dims.assign(static_cast<std::size_t>(rank), 0);
   if (rank > 0) H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
   hsize_t count = 1;
-  for (hsize_t d : dims) count *= d;
+  for (hsize_t d : dims) count = d == 0 ? 0 : (count > ~hsize_t{0} / d ? ~hsize_t{0} : count * d);
+  // A dataset's shape costs nothing on disk (chunked, never written): check that it fits in
+  // memory before allocating it (simulation/memory_estimate.hpp).
+  const double bytes = 8.0 * static_cast<double>(count);
+  if (const double available = available_memory(); available > 0.0 && bytes > 0.5 * available) {
+    throw BadInput(fmt::format("{}: dataset '{}' has {} values ({:.3g} GB as doubles), more than half of the "
+                               "{:.3g} GB of memory this process may use",
+                               path, name, count, bytes / 1e9, available / 1e9));
+  }
   std::vector<double> values(static_cast<std::size_t>(count));
   if (count > 0 &&
       H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
@@ -148,6 +173,16 @@ int gravity_command(const GravityArguments& args) {
       if (!std::isfinite(positions[i]))
         throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) +
                        "] is not finite");
+    for (std::size_t i = 0; i < positions.size(); ++i)
+      if (std::abs(positions[i]) > max_coordinate)
+        throw BadInput(fmt::format("{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
+                                   "overflows double precision)",
+                                   in, i / 3, i % 3, positions[i], max_coordinate));
+    for (std::size_t i = 0; i < masses.size(); ++i)
+      if (masses[i] > max_mass)
+        throw BadInput(fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
+                                   "double precision)",
+                                   in, i, masses[i], max_mass));
 
     // ---- compute
     if (args.threads > 0) omp_set_num_threads(args.threads);
@@ -161,13 +196,23 @@ int gravity_command(const GravityArguments& args) {
       throw BadInput(in + ": " + e.what());
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(acc[3 * i]) || !std::isfinite(acc[3 * i + 1]) || !std::isfinite(acc[3 * i + 2]) ||
+          !std::isfinite(pot[i])) {
+        throw NonFiniteField(fmt::format(
+            "{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the field overflows "
+            "double precision: a large --G, or particles very close together without --softening)",
+            in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
+            acc[3 * i + 2], pot[i]));
+      }
+    }
 
     // ---- output
     if (!args.output.empty()) {
       Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
       if (!out) {
-        std::cerr << "rubble gravity: error: " << args.output << ": cannot create the output file\n";
-        return exit_failure;
+        std::cerr << "rubble gravity: output failure: " << args.output << ": cannot create the output file\n";
+        return exit_output_failure;
       }
       try {
         write_dataset(out.get(), args.output, "accelerations", {n, 3}, acc);
@@ -176,9 +221,13 @@ int gravity_command(const GravityArguments& args) {
         write_attribute(out.get(), "theta", options.theta);
         write_attribute(out.get(), "order", options.order);
         write_attribute(out.get(), "softening_length", args.softening);
+        // HDF5 buffers the data; a full disk shows only when it is flushed and closed.
+        if (H5Fflush(out.get(), H5F_SCOPE_LOCAL) < 0 || out.reset() < 0) {
+          throw std::runtime_error(args.output + ": cannot flush the output file (disk full or I/O error?)");
+        }
       } catch (const std::runtime_error& e) {
-        std::cerr << "rubble gravity: error: " << e.what() << "\n";
-        return exit_failure;
+        std::cerr << "rubble gravity: output failure: " << e.what() << "\n";
+        return exit_output_failure;
       }
     }
     nlohmann::json line = {{"N", n},
@@ -198,6 +247,9 @@ int gravity_command(const GravityArguments& args) {
   } catch (const BadInput& e) {
     std::cerr << "rubble gravity: error: " << e.what() << "\n";
     return exit_bad_input;
+  } catch (const NonFiniteField& e) {
+    std::cerr << "rubble gravity: numerical failure: " << e.what() << "; no output written\n";
+    return exit_numerical_failure;
   }
   return exit_ok;
 }

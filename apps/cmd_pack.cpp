@@ -10,6 +10,8 @@
 #include <array>
 #include <cmath>
 #include <fmt/format.h>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -58,8 +60,9 @@ int pack_command(const PackArguments& args) {
   out << text;
   out.close();
   if (!out) {
-    std::cerr << "rubble pack: error: cannot write " << args.output << "\n";
-    return exit_failure;
+    const int error = errno;
+    std::cerr << "rubble pack: output failure: cannot write " << args.output << ": " << std::strerror(error) << "\n";
+    return exit_output_failure;
   }
   std::cerr << "rubble pack: wrote " << args.output << "; run it with: rubble run " << args.output << "\n";
   return exit_ok;

@@ -75,6 +75,11 @@ int post_command(const PostArguments& args) {
       return exit_ok;
     }
     const std::filesystem::path run(args.run_file);
+    std::error_code error;
+    if (std::filesystem::is_directory(run, error)) {
+      std::cerr << "rubble post: error: " << run.string() << ": is a folder, expected a run file (DIR/run.h5)\n";
+      return exit_bad_input;
+    }
     PostOptions options;
     {
       const RunReader reader = RunReader::open(run);
@@ -88,6 +93,12 @@ int post_command(const PostArguments& args) {
     options.histogram_bins = args.bins;
     options.log = log;
     post_process_run(run, options);
+  } catch (const PostOutputError& e) {
+    std::cerr << "rubble post: output failure: " << e.what() << "\n";
+    return exit_output_failure;
+  } catch (const NonFiniteResult& e) {
+    std::cerr << "rubble post: numerical failure: " << e.what() << "\n";
+    return exit_numerical_failure;
   } catch (const std::exception& e) {
     std::cerr << "rubble post: error: " << e.what() << "\n";
     return exit_bad_input;

@@ -20,8 +20,11 @@
 #include <sstream>
 
 #include "apps/commands.hpp"
+#include "core/input_file.hpp"
 #include "simulation/checkpoint.hpp"
+#include "simulation/output_lock.hpp"
 #include "simulation/run.hpp"
+#include "simulation/run_control.hpp"
 #include "simulation/scene_file.hpp"
 
 namespace rubble::apps {
@@ -61,6 +64,7 @@ struct RunArguments {
   std::string scene_path;
   std::string output_directory;
   std::string resume_directory;
+  std::int64_t from_step = -1;  ///< --from-step: resume from this checkpoint instead of the newest
   double end_time = 0.0;
   std::int64_t checkpoint_every = 0;
   double checkpoint_minutes = 10.0;
@@ -106,6 +110,7 @@ int run_command(const RunArguments& args) {
   LoadedCheckpoint loaded;
   const bool resuming = !args.resume_directory.empty();
   try {
+    if (!resuming && args.from_step >= 0) return bad_input("--from-step is used with --resume DIR");
     if (resuming) {
       if (!args.scene_path.empty()) return bad_input("give a scene file or --resume DIR, not both");
       if (!args.output_directory.empty()) {
@@ -114,7 +119,20 @@ int run_command(const RunArguments& args) {
       if (!std::filesystem::is_directory(args.resume_directory)) {
         return bad_input(args.resume_directory + ": no such run folder to resume");
       }
-      loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+      if (args.from_step >= 0) {
+        const std::filesystem::path folder = checkpoint_folder(args.resume_directory);
+        const std::filesystem::path file = folder / fmt::format("step-{:012}.ckpt", args.from_step);
+        if (!std::filesystem::is_regular_file(file)) {
+          std::string steps;
+          for (const auto& path : list_checkpoints(folder)) steps += fmt::format(" {}", checkpoint_step(path));
+          return bad_input(fmt::format("--from-step {}: no checkpoint of that step in {} (checkpoints at steps:{})",
+                                       args.from_step, folder.string(), steps.empty() ? " none" : steps));
+        }
+        loaded.checkpoint = read_checkpoint(file);
+        loaded.file = file;
+      } else {
+        loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+      }
       for (const std::string& reason : loaded.rejected) std::cerr << "rubble run: warning: skipped " << reason << "\n";
       const Checkpoint& checkpoint = loaded.checkpoint;
       control.scene_text = checkpoint.scene_text;
@@ -132,16 +150,15 @@ int run_command(const RunArguments& args) {
       control.scene_source = "<built-in default scene>";
       scene = parse_scene(control.scene_text, control.scene_source);
     } else {
-      std::ifstream in(args.scene_path);
-      if (!in) return bad_input(args.scene_path + ": cannot open the scene file");
-      std::stringstream buffer;
-      buffer << in.rdbuf();
-      control.scene_text = buffer.str();
-      scene = load_scene_file(args.scene_path);
+      // Read once, with the scene file's cap and only from a regular file (core/input_file.hpp).
+      control.scene_text = read_input_file(args.scene_path, max_scene_file_bytes, "scene file");
+      scene = parse_scene(control.scene_text, args.scene_path);
       // Absolute, so that a resumed run anchors the scene's relative paths the same way.
       control.scene_source = std::filesystem::absolute(args.scene_path).string();
     }
   } catch (const SceneError& e) {
+    return bad_input(e.what());
+  } catch (const InputFileError& e) {
     return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
@@ -150,6 +167,13 @@ int run_command(const RunArguments& args) {
     if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
     if (args.end_time > 0.0) scene.run.end_time = args.end_time;
   }
+  // An override is held to the scene's own rule for [time] end_time (run_control.hpp): the step
+  // count from the scene's initial time, for a new run and a resumed one alike.
+  if (args.end_time > 0.0) {
+    if (const auto problem = end_time_problem(args.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
+      return bad_input("--end-time: " + *problem);
+    }
+  }
   control.checkpoint_every_steps = args.checkpoint_every;
   control.checkpoint_interval = 60.0 * args.checkpoint_minutes;
   control.max_speed = args.no_runaway_check ? -1.0 : args.max_speed;
@@ -157,6 +181,7 @@ int run_command(const RunArguments& args) {
 
   std::ostream* progress = args.quiet ? nullptr : &std::cout;
   control.progress = progress;
+  control.warnings = &std::cerr;
   if (progress) {
     *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
               << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
@@ -200,6 +225,13 @@ int run_command(const RunArguments& args) {
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;
+  } catch (const OutputError& e) {
+    std::cerr << "rubble run: output failure: " << e.what() << "\n";
+    return exit_output_failure;
+  } catch (const OutputFolderBusy& e) {
+    return bad_input(e.what());
+  } catch (const OutputFolderError& e) {
+    return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
   } catch (const std::invalid_argument& e) {
@@ -237,7 +269,8 @@ void register_run_command(CLI::App& app) {
   };
   const auto positive = number("a finite number > 0", [](double v) { return v > 0.0; });
   const auto non_negative = number("a finite number >= 0", [](double v) { return v >= 0.0; });
-  const auto count = number("an integer >= 0", [](double v) { return v >= 0.0 && v == std::floor(v); });
+  // Below 2^62: a count must fit the 64-bit step counters with room to add to them.
+  const auto count = number("an integer >= 0 and < 2^62", [](double v) { return v >= 0.0 && v == std::floor(v) && v < 0x1p62; });
   CLI::Option* scene_option = run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
   run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
@@ -245,6 +278,11 @@ void register_run_command(CLI::App& app) {
   run->add_option("--resume", args->resume_directory,
                   "Go on with the run in DIR from its newest valid checkpoint (DIR/checkpoints)")
       ->type_name("DIR");
+  run->add_option("--from-step", args->from_step,
+                  "With --resume: go on from the checkpoint of step K instead of the newest (later ones are set "
+                  "aside; [output] keep_checkpoint_every keeps older ones)")
+      ->check(count)
+      ->type_name("K");
   run->add_option("--checkpoint-every", args->checkpoint_every, "Write a checkpoint every N steps (default 0: off)")
       ->check(count);
   run->add_option("--checkpoint-minutes", args->checkpoint_minutes,

@@ -9,7 +9,8 @@ enum ExitCode : int {
   exit_ok = 0,                 ///< success
   exit_failure = 1,            ///< an unexpected error (I/O, internal)
   exit_bad_input = 2,          ///< the input (scene, file, arguments) is invalid
-  exit_numerical_failure = 3,  ///< the run stopped on a non-finite or runaway state
+  exit_numerical_failure = 3,  ///< a non-finite or runaway result (run state, field, impulses, metrics)
+  exit_output_failure = 4,     ///< the output could not be written (disk full, I/O error); see docs/exit-codes.md
 };
 
 /// `rubble run [SCENE] [--out DIR]`: runs a scene (the built-in default without SCENE).

@@ -1,11 +1,16 @@
 // rubble: Contact Dynamics for gravitational aggregates. Subcommands live in cmd_<name>.cpp.
 #include <cstdlib>
 #include <exception>
+#include <new>
 #include <iostream>
 
 #include "apps/commands.hpp"
+#include "core/hdf5_io.hpp"
 
 int main(int argc, char** argv) {
+  // Before any HDF5 call: no library clean-up at exit, which crashes on a file whose close failed
+  // (disk full); every file is closed by its owner first (core/hdf5_io.hpp).
+  rubble::hdf5::skip_library_cleanup_at_exit();
   CLI::App app{"rubble: Contact Dynamics (Moreau-Jean + NLGS) for rubble-pile asteroids"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "rubble 0.1.0");
@@ -32,6 +37,10 @@ int main(int argc, char** argv) {
     // CLI11 prints usage errors; bad arguments are bad input.
     const int code = app.exit(e);
     return code == 0 ? 0 : rubble::apps::exit_bad_input;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "rubble: error: out of memory: the input needs more memory than this process may use "
+                 "(physical memory, cgroup or ulimit)\n";
+    return rubble::apps::exit_failure;
   } catch (const std::exception& e) {
     std::cerr << "rubble: error: " << e.what() << "\n";
     return rubble::apps::exit_failure;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <numeric>
 #include <stdexcept>
+#include <vector>
 
 namespace rubble::hdf5 {
 namespace {
@@ -31,14 +32,26 @@ hsize_t element_count(std::span<const hsize_t> dims) {
   return std::accumulate(dims.begin(), dims.end(), hsize_t{1}, [](hsize_t a, hsize_t b) { return a * b; });
 }
 
+/// Rows per chunk of a checksummed dataset: a chunk stays under HDF5's 4 GiB limit for any row size
+/// used here (at most a few doubles a row) and a damaged chunk names a small part of the file.
+constexpr hsize_t checksum_chunk_rows = 65536;
+
 void write_array(hid_t parent, const std::string& name, hid_t file_type, hid_t memory_type, const void* data,
-                 std::size_t size, std::span<const hsize_t> dims, const std::filesystem::path& file) {
+                 std::size_t size, std::span<const hsize_t> dims, const std::filesystem::path& file,
+                 Checksum checksum) {
   if (element_count(dims) != size) {
     throw std::invalid_argument(where(file, "dataset '" + name + "': data size does not match its shape"));
   }
   Handle space = own(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, file,
                      "dataspace of '" + name + "'");
-  Handle dataset = own(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+  Handle properties = own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, "dataset properties");
+  if (checksum == Checksum::fletcher32 && size > 0) {
+    std::vector<hsize_t> chunk(dims.begin(), dims.end());
+    chunk[0] = std::min(chunk[0], checksum_chunk_rows);
+    check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), file, "chunking of '" + name + "'");
+    check(H5Pset_fletcher32(properties.get()), file, "checksum of '" + name + "'");
+  }
+  Handle dataset = own(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
                        H5Dclose, file, "cannot create dataset '" + name + "'");
   // A zero-size dataset has nothing to write, but it exists with its shape (h5py reads it).
   if (size > 0) {
@@ -148,20 +161,20 @@ std::vector<std::string> link_names(hid_t group, const std::filesystem::path& fi
 }
 
 void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file) {
-  write_array(parent, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data.data(), data.size(), dims, file);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
+  write_array(parent, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data.data(), data.size(), dims, file, checksum);
 }
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file) {
-  write_array(parent, name, H5T_STD_I64LE, H5T_NATIVE_INT64, data.data(), data.size(), dims, file);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
+  write_array(parent, name, H5T_STD_I64LE, H5T_NATIVE_INT64, data.data(), data.size(), dims, file, checksum);
 }
 void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file) {
-  write_array(parent, name, H5T_STD_I32LE, H5T_NATIVE_INT32, data.data(), data.size(), dims, file);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
+  write_array(parent, name, H5T_STD_I32LE, H5T_NATIVE_INT32, data.data(), data.size(), dims, file, checksum);
 }
 void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
-                 std::span<const hsize_t> dims, const std::filesystem::path& file) {
-  write_array(parent, name, H5T_STD_I8LE, H5T_NATIVE_INT8, data.data(), data.size(), dims, file);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
+  write_array(parent, name, H5T_STD_I8LE, H5T_NATIVE_INT8, data.data(), data.size(), dims, file, checksum);
 }
 
 void write_string(hid_t parent, const std::string& name, std::string_view text, const std::filesystem::path& file) {
@@ -304,7 +317,7 @@ std::string read_string_attribute(hid_t object, const std::string& name, const s
 }
 
 ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t type, hsize_t chunk_rows,
-                                   const std::filesystem::path& file)
+                                   const std::filesystem::path& file, Checksum checksum)
     : type_(type), name_(name) {
   const hsize_t dims[1] = {0};
   const hsize_t max_dims[1] = {H5S_UNLIMITED};
@@ -312,6 +325,7 @@ ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t 
   Handle properties = own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, "dataset properties");
   const hsize_t chunk[1] = {chunk_rows};
   check(H5Pset_chunk(properties.get(), 1, chunk), file, "chunking of '" + name + "'");
+  if (checksum == Checksum::fletcher32) check(H5Pset_fletcher32(properties.get()), file, "checksum of '" + name + "'");
   dataset_ = own(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
                  H5Dclose, file, "cannot create dataset '" + name + "'");
 }

@@ -53,6 +53,12 @@ class Handle {
   Closer closer_ = nullptr;
 };
 
+/// Turns off HDF5's clean-up at process exit (H5dont_atexit); call before any other HDF5 call.
+/// That clean-up closes the files left open, and HDF5 1.10 crashes (SIGSEGV in H5F__close_cb)
+/// on a file whose close already failed, e.g. on a full disk. rubble closes every file it opens
+/// through Handle (RAII), so the clean-up has nothing else to do.
+inline void skip_library_cleanup_at_exit() { H5dont_atexit(); }
+
 /// While alive, HDF5 does not print its error stack on stderr (we throw with the message instead).
 /// Restores the previous error handler on destruction.
 class QuietErrors {
@@ -92,18 +98,24 @@ bool exists(hid_t parent, const std::string& name);
 /// Names of the links in a group, in their creation order if tracked, else by name.
 std::vector<std::string> link_names(hid_t group, const std::filesystem::path& file);
 
+/// Whether a dataset carries a checksum. With fletcher32 the data are stored in chunks of at
+/// most 65 536 rows, each with HDF5's Fletcher-32 checksum, which every read verifies (a damaged
+/// chunk fails to read with "data error detected by fletcher32 checksum" instead of returning
+/// wrong numbers); empty datasets have nothing to check and stay contiguous.
+enum class Checksum { none, fletcher32 };
+
 /// Writes a dataset of shape dims (row-major) from `data` (size = product of dims; may be 0).
 void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
 /// Same for 64-bit integers.
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file);
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
 /// Same for 32-bit integers.
 void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file);
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
 /// Same for 8-bit integers.
 void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
-                 std::span<const hsize_t> dims, const std::filesystem::path& file);
+                 std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
 /// A scalar variable-length UTF-8 string dataset.
 void write_string(hid_t parent, const std::string& name, std::string_view text, const std::filesystem::path& file);
 /// A 1-D dataset of variable-length UTF-8 strings.
@@ -146,9 +158,9 @@ std::string read_string_attribute(hid_t object, const std::string& name, const s
 class ExtendableColumn {
  public:
   /// Creates `name` in `parent` with element type `type` (a predefined native type such as
-  /// H5T_NATIVE_DOUBLE), chunks of `chunk_rows` rows.
+  /// H5T_NATIVE_DOUBLE), chunks of `chunk_rows` rows, each with a Fletcher-32 checksum if asked.
   ExtendableColumn(hid_t parent, const std::string& name, hid_t type, hsize_t chunk_rows,
-                   const std::filesystem::path& file);
+                   const std::filesystem::path& file, Checksum checksum = Checksum::none);
   /// Appends `count` elements of the column's type read from `data`.
   void append(const void* data, std::size_t count, const std::filesystem::path& file);
   /// Opens the existing column `name` of `parent` (made by the constructor above) and cuts it to

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <numeric>
@@ -27,7 +30,7 @@ namespace fs = std::filesystem;
 class CsvWriter {
  public:
   CsvWriter(const fs::path& path, const std::vector<std::string>& header) : path_(path), out_(path) {
-    if (!out_) throw std::runtime_error(path.string() + ": cannot create the file");
+    if (!out_) throw PostOutputError(path.string() + ": cannot create the file: " + std::strerror(errno));
     for (std::size_t k = 0; k < header.size(); ++k) out_ << (k ? "," : "") << header[k];
     out_ << "\n";
   }
@@ -45,7 +48,7 @@ class CsvWriter {
   }
   void close() {
     out_.close();
-    if (!out_) throw std::runtime_error(path_.string() + ": cannot write the file");
+    if (!out_) throw PostOutputError(path_.string() + ": cannot write the file: " + std::strerror(errno));
   }
 
  private:
@@ -109,6 +112,49 @@ void write_metrics_hdf5(const fs::path& path, const fs::path& run_file, const st
   hdf5::check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), path, "cannot flush");
 }
 
+/// Throws NonFiniteResult when a series row holds a non-finite time, energy or residual.
+void check_series(const fs::path& run_file, const RunSeries& series) {
+  for (std::size_t k = 0; k < series.step.size(); ++k) {
+    for (const auto& [name, value] : {std::pair{"time", series.time[k]}, std::pair{"kinetic_energy", series.kinetic_energy[k]},
+                                      std::pair{"residual", series.residual[k]}}) {
+      if (!std::isfinite(value)) {
+        throw NonFiniteResult(run_file.string() + ": /series row " + std::to_string(k) + " (step " +
+                              std::to_string(series.step[k]) + "): " + name + " = " + number(value));
+      }
+    }
+  }
+}
+
+/// Throws NonFiniteResult when a body of the snapshot has a non-finite position, orientation or
+/// velocity: every metric of it would be NaN.
+void check_snapshot(const fs::path& run_file, std::size_t index, const State& state) {
+  for (std::size_t b = 0; b < state.body_count(); ++b) {
+    const char* what = !state.position[b].allFinite()              ? "position"
+                       : !state.orientation[b].coeffs().allFinite() ? "orientation"
+                       : !state.velocity[b].allFinite()             ? "velocity"
+                       : !state.angular_velocity[b].allFinite()     ? "angular velocity"
+                                                                    : nullptr;
+    if (what != nullptr) {
+      const Vec3 x = state.position[b];
+      throw NonFiniteResult(run_file.string() + ": snapshot " + std::to_string(index) + " (step " +
+                            std::to_string(state.step) + ", t = " + number(state.time) + " s): body " +
+                            std::to_string(b) + ": non-finite " + what + " (position " + number(x.x()) + ", " +
+                            number(x.y()) + ", " + number(x.z()) + ")");
+    }
+  }
+}
+
+/// Throws NonFiniteResult naming the first non-finite metric of a snapshot's row.
+void check_metrics(const fs::path& run_file, std::size_t index, const std::vector<double>& row) {
+  const std::vector<std::string> names = metrics_column_names();
+  for (std::size_t c = 0; c < row.size(); ++c) {
+    if (!std::isfinite(row[c])) {
+      throw NonFiniteResult(run_file.string() + ": snapshot " + std::to_string(index) + ": metric " +
+                            (c < names.size() ? names[c] : std::to_string(c)) + " = " + number(row[c]));
+    }
+  }
+}
+
 }  // namespace
 
 fs::path plots_script() {
@@ -122,13 +168,14 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   const fs::path out = options.output_directory;
   std::error_code error;
   fs::create_directories(out, error);
-  if (error) throw std::runtime_error(out.string() + ": cannot create the folder: " + error.message());
+  if (error) throw PostOutputError(out.string() + ": cannot create the folder: " + error.message());
   std::vector<fs::path> written;
   std::int64_t grains = 0;
   for (std::size_t i = 0; i < model.body_count(); ++i) grains += model.is_grain(i) ? 1 : 0;
 
   // The per-step series, with the mean kinetic energy per grain.
   const RunSeries series = reader.read_series();
+  check_series(run_file, series);
   {
     const fs::path path = out / "series.csv";
     std::vector<std::string> header{"step",           "time",       "kinetic_energy", "mean_kinetic_energy", "contacts",
@@ -156,7 +203,9 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   const std::vector<std::size_t> indices = chosen_snapshots(reader.snapshot_count(), options.every);
   for (std::size_t k = 0; k < indices.size(); ++k) {
     const RunSnapshot snapshot = reader.read_snapshot(indices[k]);
+    check_snapshot(run_file, indices[k], snapshot.state);
     rows.push_back(metrics_row(compute_metrics(model, snapshot.state, snapshot.contacts, options.potential)));
+    check_metrics(run_file, indices[k], rows.back());
     if (vtk) vtk->write(snapshot.state, snapshot.contacts);
     if (k + 1 == indices.size()) histogram = normal_impulse_histogram(snapshot.contacts, options.histogram_bins);
     if (options.log != nullptr && (k % 20 == 0 || k + 1 == indices.size())) {
@@ -181,7 +230,11 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
     csv.close();
     written.push_back(path);
   }
-  write_metrics_hdf5(out / "metrics.h5", run_file, rows, histogram);
+  try {
+    write_metrics_hdf5(out / "metrics.h5", run_file, rows, histogram);
+  } catch (const std::runtime_error& error) {
+    throw PostOutputError(error.what());
+  }
   written.push_back(out / "metrics.h5");
   if (vtk) {
     for (const fs::path& collection : vtk->collections()) written.push_back(collection);
@@ -218,7 +271,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   const fs::path out = options.output_directory;
   std::error_code error;
   fs::create_directories(out, error);
-  if (error) throw std::runtime_error(out.string() + ": cannot create the folder: " + error.message());
+  if (error) throw PostOutputError(out.string() + ": cannot create the folder: " + error.message());
 
   const fs::path path = out / "study.csv";
   CsvWriter csv(path, {"run", "shape", "grains", "friction", "snapshots_used", "window_start", "Z_max",
@@ -265,7 +318,9 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
     std::vector<AggregateMetrics> all;
     for (std::size_t k = 0; k < reader->snapshot_count(); ++k) {
       const RunSnapshot snapshot = reader->read_snapshot(k);
+      check_snapshot(run, k, snapshot.state);
       all.push_back(compute_metrics(model, snapshot.state, snapshot.contacts));
+      check_metrics(run, k, metrics_row(all.back()));
     }
     std::vector<const AggregateMetrics*> window;
     for (const AggregateMetrics& m : all) {
@@ -281,6 +336,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       return sum / static_cast<double>(window.size());
     };
     const RunSeries series = reader->read_series();
+    check_series(run, series);
     const double grains = static_cast<double>(all.front().grains);
     const double peak_energy =
         series.kinetic_energy.empty() || grains == 0

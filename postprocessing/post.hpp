@@ -4,12 +4,27 @@
 // in docs/postprocessing.md.
 #include <filesystem>
 #include <iosfwd>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "postprocessing/metrics.hpp"
 
 namespace rubble {
+
+/// A run file whose content, or a metric computed from it, is not finite (NaN or infinite
+/// positions, energies, metrics): a numerical failure, which `rubble post` reports with exit code 3
+/// instead of writing NaN into its tables. what() names the file, the snapshot or series row, the
+/// body or metric, and the value.
+struct NonFiniteResult : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// An output file of `rubble post` could not be written (disk full, I/O error, no permission):
+/// `rubble post` reports it with exit code 4. what() names the file and the reason.
+struct PostOutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 /// What post_process_run does.
 struct PostOptions {
@@ -24,7 +39,8 @@ struct PostOptions {
 };
 
 /// Post-processes one run file; returns the files written. Throws std::runtime_error naming the
-/// file on any read/write problem, or when the plotting script fails.
+/// file on any read/write problem, or when the plotting script fails, and NonFiniteResult when a
+/// series value, a snapshot's state or a metric is not finite (checked before each is written).
 std::vector<std::filesystem::path> post_process_run(const std::filesystem::path& run_file, const PostOptions& options);
 
 /// What post_process_study does.

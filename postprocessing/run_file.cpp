@@ -20,6 +20,10 @@ namespace {
 using hdf5::Handle;
 namespace fs = std::filesystem;
 
+/// Every numeric dataset of the run file carries HDF5's Fletcher-32 checksum, verified on every
+/// read: a flipped byte is reported by the reader instead of read as a wrong number.
+constexpr hdf5::Checksum checksum = hdf5::Checksum::fletcher32;
+
 std::string utc_now_iso8601() {
   const std::time_t now = std::time(nullptr);
   std::tm utc{};
@@ -39,12 +43,12 @@ std::vector<double> flatten(std::span<const Vec3> vectors) {
 
 void write_vec3s(hid_t parent, const std::string& name, std::span<const Vec3> vectors, const fs::path& file) {
   const std::array<hsize_t, 2> dims{vectors.size(), 3};
-  hdf5::write_doubles(parent, name, flatten(vectors), dims, file);
+  hdf5::write_doubles(parent, name, flatten(vectors), dims, file, checksum);
 }
 
 void write_column(hid_t parent, const std::string& name, std::span<const double> values, const fs::path& file) {
   const std::array<hsize_t, 1> dims{values.size()};
-  hdf5::write_doubles(parent, name, values, dims, file);
+  hdf5::write_doubles(parent, name, values, dims, file, checksum);
 }
 
 void write_model(hid_t file_id, const Model& model, const fs::path& file) {
@@ -66,9 +70,9 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
     if (model.shape_kind[i] == ShapeKind::sphere) radius[i] = model.sphere_radius(i);
   }
   const std::array<hsize_t, 1> dims_n{n};
-  hdf5::write_int8s(g, "body_shape_kind", kind, dims_n, file);
-  hdf5::write_int32s(g, "body_shape_index", shape_index, dims_n, file);
-  hdf5::write_int32s(g, "material", material, dims_n, file);
+  hdf5::write_int8s(g, "body_shape_kind", kind, dims_n, file, checksum);
+  hdf5::write_int32s(g, "body_shape_index", shape_index, dims_n, file, checksum);
+  hdf5::write_int32s(g, "material", material, dims_n, file, checksum);
   write_column(g, "mass", model.mass, file);
   write_column(g, "volume", model.volume, file);
   write_column(g, "bounding_radius", model.bounding_radius, file);
@@ -96,10 +100,10 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
     write_vec3s(polyhedra.get(), "vertices", vertices, file);
     const std::array<hsize_t, 1> dims_vo{vertex_offset.size()}, dims_fv{face_vertices.size()},
         dims_fo{face_offset.size()}, dims_pfo{polyhedron_face_offset.size()};
-    hdf5::write_int64s(polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file);
-    hdf5::write_int32s(polyhedra.get(), "face_vertices", face_vertices, dims_fv, file);
-    hdf5::write_int64s(polyhedra.get(), "face_offset", face_offset, dims_fo, file);
-    hdf5::write_int64s(polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file);
+    hdf5::write_int64s(polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file, checksum);
+    hdf5::write_int32s(polyhedra.get(), "face_vertices", face_vertices, dims_fv, file, checksum);
+    hdf5::write_int64s(polyhedra.get(), "face_offset", face_offset, dims_fo, file, checksum);
+    hdf5::write_int64s(polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file, checksum);
     write_vec3s(polyhedra.get(), "face_normal", face_normals, file);
   }
   {
@@ -137,8 +141,8 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
       }
     }
     const std::array<hsize_t, 2> dims{m, m};
-    hdf5::write_doubles(laws.get(), "friction", friction, dims, file);
-    hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file);
+    hdf5::write_doubles(laws.get(), "friction", friction, dims, file, checksum);
+    hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file, checksum);
   }
 }
 
@@ -171,6 +175,33 @@ struct RunFile::Impl {
   std::int64_t rows = 0;
   std::int64_t snapshots = 0;
   std::size_t body_count = 0;  // of the model: every snapshot has this many bodies
+  // A write or flush failed (disk full, I/O error): the file is not flushed again on close, and
+  // later writes are refused, so that HDF5 is not asked to retry what cannot succeed.
+  bool failed = false;
+
+  /// Runs one write; a failure marks the file failed and is passed on.
+  template <typename Write>
+  void guarded(Write&& write) {
+    if (failed) throw std::runtime_error(path.string() + ": an earlier write to the run file failed");
+    try {
+      write();
+    } catch (...) {
+      failed = true;
+      throw;
+    }
+  }
+
+  /// Closes every object, children before the file (HDF5 keeps a file open while any of its
+  /// objects is), with HDF5's error printing off: after a failed write the closes fail too.
+  void close() noexcept {
+    const hdf5::QuietErrors quiet;
+    columns.clear();
+    stage_columns.clear();
+    stage_group.reset();
+    series_group.reset();
+    snapshots_group.reset();
+    file.reset();
+  }
 
   void write_buffered_rows() {
     const std::size_t count = step.size();
@@ -206,12 +237,15 @@ RunFile& RunFile::operator=(RunFile&& other) noexcept {
 
 RunFile::~RunFile() {
   if (!impl_) return;
-  try {
-    flush();
-  } catch (const std::exception& error) {
-    // A destructor must not throw; the run loop calls flush() itself to see errors.
-    std::fprintf(stderr, "rubble: run file not flushed on close: %s\n", error.what());
+  if (!impl_->failed) {
+    try {
+      flush();
+    } catch (const std::exception& error) {
+      // A destructor must not throw; the run loop calls flush() itself to see errors.
+      std::fprintf(stderr, "rubble: run file not flushed on close: %s\n", error.what());
+    }
   }
+  impl_->close();
 }
 
 RunFile RunFile::create(const fs::path& path, const Model& model, std::string_view scene_text,
@@ -240,19 +274,21 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   impl->series_group = hdf5::create_group(root, "series", path);
   const hid_t series = impl->series_group.get();
   constexpr hsize_t chunk = 1024;
-  impl->columns.emplace_back(series, "step", H5T_NATIVE_INT64, chunk, path);
-  impl->columns.emplace_back(series, "time", H5T_NATIVE_DOUBLE, chunk, path);
-  impl->columns.emplace_back(series, "kinetic_energy", H5T_NATIVE_DOUBLE, chunk, path);
-  impl->columns.emplace_back(series, "contacts", H5T_NATIVE_INT64, chunk, path);
-  impl->columns.emplace_back(series, "active_contacts", H5T_NATIVE_INT64, chunk, path);
-  impl->columns.emplace_back(series, "iterations", H5T_NATIVE_INT, chunk, path);
-  impl->columns.emplace_back(series, "residual", H5T_NATIVE_DOUBLE, chunk, path);
-  impl->columns.emplace_back(series, "wall_seconds", H5T_NATIVE_DOUBLE, chunk, path);
-  for (const char* name : conservation_columns) impl->columns.emplace_back(series, name, H5T_NATIVE_DOUBLE, chunk, path);
+  impl->columns.emplace_back(series, "step", H5T_NATIVE_INT64, chunk, path, checksum);
+  impl->columns.emplace_back(series, "time", H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  impl->columns.emplace_back(series, "kinetic_energy", H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  impl->columns.emplace_back(series, "contacts", H5T_NATIVE_INT64, chunk, path, checksum);
+  impl->columns.emplace_back(series, "active_contacts", H5T_NATIVE_INT64, chunk, path, checksum);
+  impl->columns.emplace_back(series, "iterations", H5T_NATIVE_INT, chunk, path, checksum);
+  impl->columns.emplace_back(series, "residual", H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  impl->columns.emplace_back(series, "wall_seconds", H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  for (const char* name : conservation_columns) {
+    impl->columns.emplace_back(series, name, H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  }
   impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
   for (std::string_view name : stage_names) {
     impl->stage_names.emplace_back(name);
-    impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, chunk, path);
+    impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, chunk, path, checksum);
   }
   hdf5::write_attribute(impl->stage_group.get(), "stage_order", std::span<const std::string>(impl->stage_names), path);
   impl->stage_seconds.resize(stage_names.size());
@@ -368,13 +404,18 @@ void RunFile::append_series(const SeriesRow& row) {
   ++f.rows;
   if (f.step.size() >= series_buffer_rows) {
     const hdf5::QuietErrors quiet;
-    f.write_buffered_rows();
+    f.guarded([&] { f.write_buffered_rows(); });
   }
 }
 
 void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
+  f.guarded([&] { write_snapshot_now(state, contacts); });
+}
+
+void RunFile::write_snapshot_now(const State& state, const ContactList& contacts) {
+  Impl& f = *impl_;
   std::array<char, 16> name{};
   std::snprintf(name.data(), name.size(), "%06lld", static_cast<long long>(f.snapshots));
   Handle group = hdf5::create_group(f.snapshots_group.get(), name.data(), f.path);
@@ -392,7 +433,7 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
   orientation.reserve(4 * n);
   for (const Quat& q : state.orientation) orientation.insert(orientation.end(), {q.w(), q.x(), q.y(), q.z()});
   const std::array<hsize_t, 2> dims_q{state.orientation.size(), 4};
-  hdf5::write_doubles(g, "orientation", orientation, dims_q, f.path);
+  hdf5::write_doubles(g, "orientation", orientation, dims_q, f.path, checksum);
   write_vec3s(g, "velocity", state.velocity, f.path);
   write_vec3s(g, "angular_velocity", state.angular_velocity, f.path);
 
@@ -405,7 +446,7 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
   const auto write_ints = [&](const char* field_name, auto value) {
     std::vector<std::int32_t> column(c);
     for (std::size_t k = 0; k < c; ++k) column[k] = static_cast<std::int32_t>(value(contacts[k]));
-    hdf5::write_int32s(g, field_name, column, dims_c, f.path);
+    hdf5::write_int32s(g, field_name, column, dims_c, f.path, checksum);
   };
   const auto write_vectors = [&](const char* field_name, auto value) {
     std::vector<double> flat;
@@ -414,7 +455,7 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
       const Vec3 v = value(contact);
       flat.insert(flat.end(), {v.x(), v.y(), v.z()});
     }
-    hdf5::write_doubles(g, field_name, flat, dims_c3, f.path);
+    hdf5::write_doubles(g, field_name, flat, dims_c3, f.path, checksum);
   };
   write_ints("contact_body_a", [](const Contact& x) { return x.id.body_a; });
   write_ints("contact_body_b", [](const Contact& x) { return x.id.body_b; });
@@ -426,19 +467,21 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
   {
     std::vector<double> gap(c);
     for (std::size_t k = 0; k < c; ++k) gap[k] = contacts[k].gap;
-    hdf5::write_doubles(g, "contact_gap", gap, dims_c, f.path);
+    hdf5::write_doubles(g, "contact_gap", gap, dims_c, f.path, checksum);
   }
   std::vector<std::int8_t> status(c);
   for (std::size_t k = 0; k < c; ++k) status[k] = static_cast<std::int8_t>(contacts[k].status);
-  hdf5::write_int8s(g, "contact_status", status, dims_c, f.path);
+  hdf5::write_int8s(g, "contact_status", status, dims_c, f.path, checksum);
   ++f.snapshots;
 }
 
 void RunFile::flush() {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
-  f.write_buffered_rows();
-  hdf5::check(H5Fflush(f.file.get(), H5F_SCOPE_LOCAL), f.path, "cannot flush");
+  f.guarded([&] {
+    f.write_buffered_rows();
+    hdf5::check(H5Fflush(f.file.get(), H5F_SCOPE_LOCAL), f.path, "cannot flush");
+  });
 }
 
 const fs::path& RunFile::path() const { return impl_->path; }

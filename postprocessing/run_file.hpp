@@ -42,7 +42,9 @@ struct SeriesRow {
 
 /// An open HDF5 run file being written (RAII: the file is flushed and closed on destruction).
 /// Move-only. Every HDF5 failure (cannot create the file, disk full, ...) throws
-/// std::runtime_error naming the file; the destructor never throws (it reports on stderr).
+/// std::runtime_error naming the file; the destructor never throws (it reports on stderr). After
+/// a failed write the file is marked failed: later writes throw at once, and the destructor
+/// closes the objects without flushing again (HDF5 cannot write what the disk refused).
 class RunFile {
  public:
   /// Creates (truncates) the file and writes the root attributes, /scene and /model.
@@ -94,6 +96,7 @@ class RunFile {
  private:
   struct Impl;
   explicit RunFile(std::unique_ptr<Impl> impl);
+  void write_snapshot_now(const State& state, const ContactList& contacts);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -4,11 +4,11 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
 
+#include "core/input_file.hpp"
 #include "preprocessing/random_polyhedron.hpp"
 
 namespace rubble {
@@ -76,8 +76,12 @@ MeshText read_off(const std::string& path, std::istream& in) {
   if (pending.size() < 2) fail(path, pending_line, "expected the counts 'vertices faces [edges]'");
   const long nv = parse_integer(path, pending_line, pending[0]);
   const long nf = parse_integer(path, pending_line, pending[1]);
-  if (nv < 4 || nv > 10'000'000) fail(path, pending_line, "vertex count " + std::to_string(nv) + ", expected 4 .. 10^7");
-  if (nf < 4 || nf > 20'000'000) fail(path, pending_line, "face count " + std::to_string(nf) + ", expected 4 .. 2x10^7");
+  if (nv < 4 || nv > max_polyhedron_file_vertices) {
+    fail(path, pending_line, "vertex count " + std::to_string(nv) + ", expected 4 .. 10^6");
+  }
+  if (nf < 4 || nf > 2 * max_polyhedron_file_vertices) {
+    fail(path, pending_line, "face count " + std::to_string(nf) + ", expected 4 .. 2x10^6");
+  }
   for (long i = 0; i < nv; ++i) {
     const auto tokens = next_tokens("a vertex 'x y z'");
     if (tokens.size() < 3) fail(path, line, "expected a vertex 'x y z', got " + std::to_string(tokens.size()) + " numbers");
@@ -116,6 +120,9 @@ MeshText read_obj(const std::string& path, std::istream& in) {
     if (tokens.empty()) continue;
     if (tokens[0] == "v") {
       if (tokens.size() < 4) fail(path, line, "expected a vertex 'v x y z'");
+      if (mesh.vertices.size() == static_cast<std::size_t>(max_polyhedron_file_vertices)) {
+        fail(path, line, "more than 10^6 vertices, the limit of a polyhedron file");
+      }
       mesh.vertices.emplace_back(parse_number(path, line, tokens[1]), parse_number(path, line, tokens[2]),
                                  parse_number(path, line, tokens[3]));
       mesh.vertex_lines.push_back(line);
@@ -154,8 +161,13 @@ std::string lower_extension(const std::string& path) {
 ConvexPolyhedron load_polyhedron_file(const std::string& path, const PolyhedronFileOptions& options,
                                       PolyhedronPose* pose) {
   if (!(options.scale > 0.0) || !std::isfinite(options.scale)) fail(path, 0, "scale must be > 0");
-  std::ifstream in(path);
-  if (!in) fail(path, 0, "cannot open the file");
+  std::istringstream in;
+  try {
+    // Regular files of at most 64 MiB (core/input_file.hpp): a link to /dev/zero is refused.
+    in.str(read_input_file(path, max_mesh_file_bytes, "polyhedron file"));
+  } catch (const InputFileError& e) {
+    fail(path, 0, e.reason);
+  }
   const std::string ext = lower_extension(path);
   MeshText mesh;
   if (ext == "off") {

@@ -9,6 +9,11 @@
 
 namespace rubble {
 
+/// Most vertices a polyhedron file may hold (faces: twice as many). A grain's narrow phase and
+/// support queries cost O(vertices); 10^6 is far beyond any grain shape and keeps a file's mesh
+/// and checks within seconds and ~0.5 GB. Files are also capped at 64 MiB (core/input_file.hpp).
+inline constexpr long max_polyhedron_file_vertices = 1'000'000;
+
 /// Options of load_polyhedron_file.
 struct PolyhedronFileOptions {
   /// Adjacent faces whose normals differ by less than this are merged into one face (a cube

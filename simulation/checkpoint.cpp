@@ -530,23 +530,56 @@ Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::s
 
 fs::path checkpoint_folder(const fs::path& output_directory) { return output_directory / "checkpoints"; }
 
-fs::path write_checkpoint(const fs::path& folder, const Checkpoint& checkpoint, int keep) {
-  return write_checkpoint(folder, checkpoint_view(checkpoint), keep);
+fs::path write_checkpoint(const fs::path& folder, const Checkpoint& checkpoint, int keep, std::int64_t keep_every) {
+  return write_checkpoint(folder, checkpoint_view(checkpoint), keep, keep_every);
 }
 
-fs::path write_checkpoint(const fs::path& folder, const CheckpointView& checkpoint, int keep) {
+std::int64_t checkpoint_step(const fs::path& file) {
+  const std::string name = file.filename().string();
+  if (!is_checkpoint_name(name)) return -1;
+  return std::stoll(name.substr(5, 12));
+}
+
+std::vector<fs::path> set_aside_checkpoints_after(const fs::path& folder, std::int64_t step) {
+  std::vector<fs::path> moved;
+  for (const fs::path& file : list_checkpoints(folder)) {
+    if (checkpoint_step(file) <= step) continue;
+    fs::path aside = file;
+    aside += ".superseded";
+    std::error_code error;
+    fs::rename(file, aside, error);
+    if (!error) moved.push_back(aside);
+  }
+  return moved;
+}
+
+fs::path write_checkpoint(const fs::path& folder, const CheckpointView& checkpoint, int keep, std::int64_t keep_every) {
   keep = std::max(keep, 1);
   fs::create_directories(folder);
   const std::string name = fmt::format("step-{:012}.ckpt", checkpoint.state.step);
   const fs::path final_path = folder / name;
   const fs::path temporary = folder / (name + ".tmp");
-  write_checkpoint_file(temporary, checkpoint);
+  try {
+    write_checkpoint_file(temporary, checkpoint);
+  } catch (...) {
+    // A partial temporary (disk full, I/O error) is never read; removing it gives its space back.
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw;
+  }
   if (::rename(temporary.c_str(), final_path.c_str()) != 0) io_error(final_path, "cannot rename the checkpoint into place");
   sync_folder(folder);
 
   // Only now, with the new checkpoint durable, drop the old ones (and stray temporaries).
+  // Newest first: the newest `keep` stay; of the older ones, with keep_every > 0, the first
+  // (lowest step) of each interval of keep_every steps stays too.
   const std::vector<fs::path> all = list_checkpoints(folder);
   for (std::size_t k = static_cast<std::size_t>(keep); k < all.size(); ++k) {
+    if (keep_every > 0) {
+      const std::int64_t interval = checkpoint_step(all[k]) / keep_every;
+      const bool first_of_interval = k + 1 == all.size() || checkpoint_step(all[k + 1]) / keep_every != interval;
+      if (first_of_interval) continue;
+    }
     std::error_code ignored;
     fs::remove(all[k], ignored);
   }

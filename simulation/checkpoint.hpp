@@ -133,11 +133,24 @@ std::filesystem::path checkpoint_folder(const std::filesystem::path& output_dire
 /// left by an interrupted write. Returns the file's path. Throws std::runtime_error on I/O errors
 /// (the previous checkpoints are then untouched).
 /// The file is streamed (see the file comment): the memory it takes is 1 MiB whatever its size.
+/// `keep_every` > 0 also keeps, among the older ones, the first checkpoint (lowest step) of every
+/// interval of `keep_every` steps ([0, N), [N, 2N), ...): the retention policy of [output]
+/// keep_checkpoint_every, which lets a run be restarted from an earlier step.
 std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const CheckpointView& checkpoint,
-                                       int keep = 2);
+                                       int keep = 2, std::int64_t keep_every = 0);
 
 /// The same for a Checkpoint.
-std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const Checkpoint& checkpoint, int keep = 2);
+std::filesystem::path write_checkpoint(const std::filesystem::path& folder, const Checkpoint& checkpoint, int keep = 2,
+                                       std::int64_t keep_every = 0);
+
+/// The step of a checkpoint file named step-NNNNNNNNNNNN.ckpt (-1 for any other name).
+std::int64_t checkpoint_step(const std::filesystem::path& file);
+
+/// Sets aside (renames to step-N.ckpt.superseded, which no listing returns) every checkpoint of
+/// `folder` later than `step`: a run resumed from an earlier checkpoint leaves the later ones on
+/// another branch of its history, which the retention and a later --resume must not take for its
+/// own. Returns the files set aside.
+std::vector<std::filesystem::path> set_aside_checkpoints_after(const std::filesystem::path& folder, std::int64_t step);
 
 /// Reads and checks one checkpoint file. Throws CheckpointError.
 Checkpoint read_checkpoint(const std::filesystem::path& file);

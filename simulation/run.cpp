@@ -12,6 +12,7 @@
 
 #include "postprocessing/metrics.hpp"
 #include "postprocessing/run_file.hpp"
+#include "simulation/output_lock.hpp"
 #include "simulation/run_control.hpp"
 
 namespace rubble {
@@ -155,6 +156,18 @@ void check_mass_properties(const Model& model) {
   }
 }
 
+/// The system's reason in an I/O error: HDF5 buries it in "..., error message = 'No space left
+/// on device', ..." after a time stamp and buffer addresses; the file and operation come first.
+std::string short_reason(const std::string& what) {
+  const std::string marker = "error message = '";
+  const auto at = what.find(marker);
+  if (at == std::string::npos) return what;
+  const auto end = what.find('\'', at + marker.size());
+  const std::string reason = what.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
+  const auto stamp = what.find(": time = ");
+  return (stamp == std::string::npos ? std::string() : what.substr(0, stamp) + ": ") + reason;
+}
+
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) { return run_scene(scene, scene.state, control); }
@@ -171,7 +184,14 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   check_mass_properties(model);
 
   const fs::path directory = run.output.directory;
-  fs::create_directories(directory);
+  // The folder is ours before anything in it is opened or truncated (output_lock.hpp), and stays
+  // ours until the run file is closed: the lock is declared before `file`, so it outlives it.
+  const OutputFolderLock lock = OutputFolderLock::acquire(directory);
+  if (lock.taken_over_from() && control.warnings) {
+    *control.warnings << fmt::format("rubble run: {}: took over the stale lock of pid {} (that run is gone)\n",
+                                     lock.file().string(), *lock.taken_over_from());
+    control.warnings->flush();
+  }
   summary.run_file = directory / "run.h5";
   const fs::path checkpoints = checkpoint_folder(directory);
   std::vector<std::string_view> stage_names;
@@ -179,10 +199,32 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
 
   // The end step follows from the scene's initial state and the end time, the same way in a new
   // run and in a resumed one (whose scene is parsed from the same text).
-  const auto total_steps =
-      std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil((run.end_time - initial_time) / h - 1e-9)));
+  // A step count past max_run_steps (or not finite) would not fit the cast below: refused, as
+  // the scene file's and the command line's checks refuse it (run_control.hpp).
+  const double wanted_steps = (run.end_time - initial_time) / h;
+  if (!std::isfinite(wanted_steps) || wanted_steps > max_run_steps) {
+    throw std::invalid_argument(fmt::format("end time {:.6g} s: {:.6g} steps of dt = {:.6g} s, expected at most 10^12",
+                                            run.end_time, wanted_steps, h));
+  }
+  const auto total_steps = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(wanted_steps - 1e-9)));
   std::optional<RunFile> file;
   std::int64_t last_checkpoint_step = -1;
+  // Every write of the output goes through `output`: a failure (disk full, I/O error) stops the
+  // run with an OutputError that says where it stopped and what is left to resume from.
+  const auto output = [&](auto&& write) {
+    try {
+      write();
+    } catch (const std::runtime_error& error) {
+      const std::string resume =
+          last_checkpoint_step >= 0
+              ? fmt::format("the last checkpoint (step {}) is intact: free space (or fix the cause), then go on with "
+                            "rubble run --resume {}",
+                            last_checkpoint_step, directory.string())
+              : std::string("no checkpoint was written yet: free space (or fix the cause) and run again");
+      throw OutputError(fmt::format("writing the output failed at step {}: {}. The run stopped; {}", state.step,
+                                    short_reason(error.what()), resume));
+    }
+  };
   if (control.resume != nullptr) {
     const Checkpoint& from = *control.resume;
     if (from.state.body_count() != model.body_count()) {
@@ -195,7 +237,50 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     workspace.held_gravity = from.held_gravity;
     workspace.held_gravity_step = from.held_gravity_step;
     progress = from.progress;  // the snapshot period stays that of the first session
-    file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
+    last_checkpoint_step = state.step;
+    // Resumed from an earlier checkpoint (--from-step, or newer ones damaged): the later ones
+    // belong to the history this run now replaces; set aside, they are neither kept by the
+    // retention as "newest" nor picked by a later --resume.
+    const std::vector<fs::path> superseded = set_aside_checkpoints_after(checkpoints, state.step);
+    if (!superseded.empty() && control.warnings) {
+      *control.warnings << fmt::format("rubble run: note: {} later checkpoint(s) set aside as *.ckpt.superseded (the run "
+                                       "goes on from step {})\n",
+                                       superseded.size(), state.step);
+    }
+    std::string unusable;  // why run.h5 cannot be reopened ("" when it can)
+    if (!fs::exists(summary.run_file)) {
+      unusable = "it is missing";
+    } else {
+      try {
+        file.emplace(RunFile::reopen(summary.run_file, state.step, stage_names));
+      } catch (const std::runtime_error& error) {
+        file.reset();
+        unusable = short_reason(error.what());
+      }
+    }
+    if (!unusable.empty()) {
+      // The checkpoint holds everything the run needs; run.h5 only holds its history. A run file
+      // damaged by a failed write (disk full) or a crash during a flush, or deleted, must not
+      // block the run: it is moved aside and the series goes on in a new run.h5 that starts at
+      // the checkpoint (a snapshot of its state, then a row per step after it).
+      fs::path aside;
+      if (fs::exists(summary.run_file)) {
+        aside = directory / fmt::format("run.h5.damaged-at-step-{}", state.step);
+        std::error_code ignored;
+        fs::rename(summary.run_file, aside, ignored);
+      }
+      output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
+      output([&] { file->write_snapshot(state, workspace.contacts); });
+      progress.series_rows = 0;
+      progress.snapshots = file->snapshot_count();
+      if (control.warnings) {
+        *control.warnings << fmt::format(
+            "rubble run: warning: {} cannot be reopened ({}){}; the series goes on in a new {} from step {} (its "
+            "first snapshot is the checkpoint's state)\n",
+            summary.run_file.string(), unusable, aside.empty() ? "" : "; moved to " + aside.string(),
+            summary.run_file.string(), state.step);
+      }
+    }
     if (file->series_rows() != progress.series_rows || file->snapshot_count() != progress.snapshots) {
       throw CheckpointError(fmt::format(
           "{}: has {} series rows and {} snapshots up to step {}, the checkpoint expects {} and {}: the run file "
@@ -203,13 +288,12 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
           summary.run_file.string(), file->series_rows(), file->snapshot_count(), state.step, progress.series_rows,
           progress.snapshots));
     }
-    last_checkpoint_step = state.step;
   } else {
-    file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names));
+    output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
     progress.first_step = state.step;
     progress.snapshot_period = snapshot_period(run, total_steps);
   }
-  file->hold_metadata_until_flush();
+  output([&] { file->hold_metadata_until_flush(); });
   progress.end_step = progress.first_step + total_steps;
   summary.first_step = state.step;
 
@@ -241,7 +325,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
                                     run.seed,                   state,                  workspace.contacts,
                                     workspace.detection_memory, progress,               saved_rest,
                                     workspace.held_gravity,     workspace.held_gravity_step};
-    summary.last_checkpoint = write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept);
+    summary.last_checkpoint =
+        write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept, run.output.keep_checkpoint_every);
     last_checkpoint_step = state.step;
   };
 
@@ -252,7 +337,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const auto start = Clock::now();
   auto last_progress = start;
   auto last_checkpoint_time = start;
-  if (control.resume == nullptr) file->write_snapshot(state, workspace.contacts);
+  if (control.resume == nullptr) output([&] { file->write_snapshot(state, workspace.contacts); });
 
   State before;  // the state at the start of the step, to locate a failure
   std::optional<double> potential;  // the grains' potential energy after the last step, J
@@ -283,7 +368,11 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (!problem) problem = check_state(model, state, h, control.max_speed);
     if (problem) {
       const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
-      file->flush();
+      try {
+        file->flush();  // what the run wrote up to the failure, if the disk takes it
+      } catch (const std::runtime_error&) {
+        // The numerical failure is the news; a run file that cannot be flushed is secondary.
+      }
       throw NumericalFailure(fmt::format(
           "step {} (t = {:.6g} s), stage {}: body {}: {}. The run stopped; the last checkpoint ({}) is intact.",
           state.step, state.time, stage, problem->body, problem->what,
@@ -333,7 +422,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       }
     }
     row.stage_seconds = report.stage_seconds;
-    file->append_series(row);
+    output([&] { file->append_series(row); });
 
     for (std::size_t s = 0; s < summary.stage_seconds.size(); ++s) summary.stage_seconds[s] += report.stage_seconds[s];
     summary.polish_attempts += report.solver.polish_attempts;
@@ -345,14 +434,14 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     const bool at_rest = run.until_rest && grain_count > 0 &&
                          rest.update(state.time, row.kinetic_energy / static_cast<double>(grain_count));
     const bool at_end = state.step == progress.end_step || at_rest;
-    if (done % progress.snapshot_period == 0 || at_end) file->write_snapshot(state, workspace.contacts);
+    if (done % progress.snapshot_period == 0 || at_end) output([&] { file->write_snapshot(state, workspace.contacts); });
 
     const bool stop = control.stop_requested != nullptr && control.stop_requested->load(std::memory_order_relaxed) != 0;
     const bool by_steps = control.checkpoint_every_steps > 0 && done % control.checkpoint_every_steps == 0;
     const bool by_time =
         control.checkpoint_interval > 0.0 && seconds_between(last_checkpoint_time, step_end) >= control.checkpoint_interval;
     if (stop || by_steps || by_time || at_end) {
-      write_checkpoint_now();
+      output(write_checkpoint_now);
       last_checkpoint_time = Clock::now();
     }
 
@@ -391,8 +480,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       break;
     }
   }
-  if (last_checkpoint_step != state.step) write_checkpoint_now();  // e.g. a run of zero steps
-  file->flush();
+  if (last_checkpoint_step != state.step) output(write_checkpoint_now);  // e.g. a run of zero steps
+  output([&] { file->flush(); });
 
   summary.final_step = state.step;
   summary.steps = state.step - summary.first_step;

@@ -20,9 +20,20 @@ struct NumericalFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Writing the run's output failed (disk full, I/O error, folder removed): the run stopped.
+/// what() names the file, the system's reason, the step, and the last checkpoint, which is left
+/// intact (a failed checkpoint write removes its temporary file), so that the run can go on with
+/// `rubble run --resume DIR` once the cause is fixed.
+struct OutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// What the caller of run_scene controls besides the scene.
 struct RunControl {
   std::ostream* progress = nullptr;  ///< where progress lines go (nullptr: silent)
+  /// Where notes that matter even in a quiet run go (a stale lock taken over, a damaged run file
+  /// set aside on resume); nullptr: nowhere.
+  std::ostream* warnings = nullptr;
   std::string scene_text;            ///< the scene as TOML, stored in the run file and the checkpoints
   std::string scene_source;          ///< the name the scene was parsed under (saved for resuming)
 
@@ -47,7 +58,9 @@ struct RunControl {
   /// Resume from this checkpoint instead of the scene's initial state (nullptr: a new run). The
   /// scene must be the checkpoint's (parsed from its scene_text); run.end_time may differ from
   /// the checkpoint's to extend or shorten the run. The run file DIR/run.h5 is reopened and cut
-  /// back to the checkpoint's step.
+  /// back to the checkpoint's step; when it is missing or cannot be reopened (damaged), it is
+  /// moved to DIR/run.h5.damaged-at-step-K and the series goes on in a new DIR/run.h5 whose first
+  /// snapshot is the checkpoint's state (a note goes to `warnings`).
   const Checkpoint* resume = nullptr;
 };
 
@@ -75,8 +88,11 @@ struct RunSummary {
 
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
 /// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in
-/// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory. Throws
-/// NumericalFailure on a non-finite or runaway state, std::runtime_error on I/O errors,
+/// DIR/checkpoints (docs/checkpoints.md), DIR = scene.run.output.directory, which it locks
+/// first (simulation/output_lock.hpp: OutputFolderBusy if another process runs there,
+/// OutputFolderError if it cannot be made; nothing is opened before). Throws
+/// NumericalFailure on a non-finite or runaway state, OutputError when writing the run file or a
+/// checkpoint fails (std::runtime_error on other I/O errors),
 /// CheckpointError if control.resume does not fit the scene or the run file, and
 /// std::invalid_argument (before writing anything) if a grain's mass, inertia or size is not
 /// finite and positive.

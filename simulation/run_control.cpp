@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
 #include <limits>
 #include <stdexcept>
 
@@ -188,6 +189,19 @@ double eta_seconds(double elapsed_wall, double start_time, double time_now, doub
   const double done = time_now - start_time;
   if (!(done > 0.0) || !(elapsed_wall > 0.0)) return -1.0;
   return elapsed_wall / done * std::max(0.0, target_time - time_now);
+}
+
+std::optional<std::string> end_time_problem(double end_time, double start_time, double time_step) {
+  const double steps = (end_time - start_time) / time_step;
+  if (!std::isfinite(end_time) || !std::isfinite(steps) || steps > max_run_steps) {
+    return fmt::format("expected an end time at most 10^12 steps of dt = {:.6g} s after t = {:.6g} s (<= {:.6g} s), got {:.6g} s",
+                       time_step, start_time, start_time + max_run_steps * time_step, end_time);
+  }
+  if (end_time < start_time + time_step) {
+    return fmt::format("expected an end time at least one step of dt = {:.6g} s after t = {:.6g} s, got {:.6g} s",
+                       time_step, start_time, end_time);
+  }
+  return std::nullopt;
 }
 
 }  // namespace rubble

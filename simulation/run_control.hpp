@@ -104,6 +104,16 @@ struct RestDetector {
   std::optional<double> estimated_rest_time() const;
 };
 
+/// The most steps a run may take: a guard against typos in an exponent (dt = 1e-40, an end time
+/// of 1e9 s), which would otherwise ask for more steps than any run can take. The scene file's
+/// [time] keys and `rubble run --end-time` are held to it alike.
+inline constexpr double max_run_steps = 1e12;
+
+/// What is wrong with an end time for a run from `start_time` by steps of `time_step` (s), as
+/// "expected ..., got ..."; nullopt when it is fine: it must be finite, at least one step after
+/// the start, and at most max_run_steps steps after it.
+std::optional<std::string> end_time_problem(double end_time, double start_time, double time_step);
+
 /// The wall-time ETA of a run, s: from the simulated-time rate of the session so far to the
 /// simulated time `target_time`. Negative when unknown (no progress yet).
 double eta_seconds(double elapsed_wall, double start_time, double time_now, double target_time);

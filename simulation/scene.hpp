@@ -17,6 +17,10 @@ struct OutputOptions {
   double snapshot_interval = 0.0;            ///< s of simulated time between snapshots (0: 100 snapshots per run)
   double progress_interval = 2.0;            ///< s of wall time between progress lines
   bool write_vtk = false;                    ///< also write a ParaView series
+  /// Checkpoint retention: besides the newest two, keep the first checkpoint of every interval of
+  /// this many steps (steps [0, N), [N, 2N), ...), so that a run can be restarted from an earlier
+  /// step (`rubble run --resume DIR --from-step K`); 0: only the newest two.
+  std::int64_t keep_checkpoint_every = 0;
 };
 
 /// How long to run and what to write, besides the step's own options.

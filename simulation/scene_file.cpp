@@ -22,6 +22,8 @@
 #include "preprocessing/packing.hpp"
 #include "preprocessing/polyhedron_file.hpp"
 #include "preprocessing/random_polyhedron.hpp"
+#include "core/input_file.hpp"
+#include "simulation/memory_estimate.hpp"
 #include "simulation/run_control.hpp"
 
 namespace rubble {
@@ -98,6 +100,13 @@ Range positive() { return Range{0.0, infinity, false, true}; }
 Range non_negative() { return Range{0.0, infinity, true, true}; }
 Range any_number() { return Range{}; }
 Range closed(double a, double b) { return Range{a, b, true, true}; }
+/// Positions and lengths of a scene, m. Past 10^12 m (7 AU) a double resolves no better than
+/// 10^-4 m, coarser than the grains' contact geometry, and region sizes, volumes and capacities
+/// derived from larger values overflow (a ±1e308 region gave an infinite first snapshot).
+constexpr double max_scene_length = 1e12;
+Range coordinate() { return closed(-max_scene_length, max_scene_length); }
+Range length() { return Range{0.0, max_scene_length, false, true}; }
+Range length_or_zero() { return closed(0.0, max_scene_length); }
 Range open(double a, double b) { return Range{a, b, false, false}; }
 
 /// "a number > 0" etc.
@@ -331,11 +340,13 @@ class TableReader {
   Quat orientation_or_identity(std::string_view key) const {
     const auto value = optional_vector<4>(key);
     if (!value) return Quat::Identity();
-    const double norm = value->norm();
+    // stableNorm: the plain norm of [1e200, 0, 0, 0] overflows to inf, and dividing by it made
+    // the zero quaternion (a grain that never turns).
+    const double norm = value->stableNorm();
     if (!(norm > 1e-12)) fail_key(key, "expected a nonzero quaternion [w, x, y, z], got a zero one");
     Quat q((*value)[0], (*value)[1], (*value)[2], (*value)[3]);
     // Leave unit quaternions bit for bit as written, so that written scenes read back exactly.
-    if (std::abs(norm - 1.0) > 1e-15) q.normalize();
+    if (std::abs(norm - 1.0) > 1e-15) q = Quat(q.w() / norm, q.x() / norm, q.y() / norm, q.z() / norm);
     return q;
   }
 
@@ -508,8 +519,9 @@ class SceneParser {
   void check_step_count(const TableReader& time) const {
     const auto& integrator = scene_.run.step.integrator;
     const std::string origin = scene_.run.automatic_time_step ? " (the automatic dt)" : "";
-    // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take.
-    constexpr double max_steps = 1e12;
+    // A guard against typos in the exponent (dt = 1e-40): more steps than any run can take
+    // (the same bound holds --end-time, run_control.hpp).
+    constexpr double max_steps = max_run_steps;
     if (scene_.run.end_time / integrator.time_step > max_steps) {
       time.fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
                               show_short(scene_.run.end_time / max_steps) + " s), got dt = " +
@@ -605,7 +617,7 @@ class SceneParser {
       table->allow_only({"type", "centre", "mass", "G", "softening"}, "for [gravity] type = \"central\"");
       gravity.kind = GravitySettings::Kind::central;
       auto& central = gravity.central;
-      central.centre = table->vec3("centre");
+      central.centre = table->vec3("centre", coordinate());
       central.mass = table->number("mass", positive());
       central.G = table->number_or("G", units::gravitational_constant, positive());
       central.softening = table->number_or("softening", 0.0, non_negative());
@@ -645,7 +657,8 @@ class SceneParser {
   void parse_output() {
     const auto output = root_.optional_table("output");
     if (!output) return;
-    output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk"},
+    output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk",
+                        "keep_checkpoint_every"},
                        "in [output]");
     auto& options = scene_.run.output;
     if (const auto directory = output->optional_string("directory")) {
@@ -660,6 +673,8 @@ class SceneParser {
     }
     options.progress_interval = output->number_or("progress_interval", options.progress_interval, non_negative());
     options.write_vtk = output->boolean_or("vtk", options.write_vtk);
+    options.keep_checkpoint_every =
+        output->integer_or("keep_checkpoint_every", 0, 0, std::numeric_limits<std::int64_t>::max());
   }
 
   void parse_materials() {
@@ -750,9 +765,9 @@ class SceneParser {
       if (type == "plane") {
         entry.allow_only({"type", "point", "normal", "material"}, "for a wall of type = \"plane\"");
         wall.is_plane = true;
-        wall.position = entry.vec3("point");
+        wall.position = entry.vec3("point", coordinate());
         const Vec3 normal = entry.vec3("normal");
-        const double norm = normal.norm();
+        const double norm = normal.stableNorm();  // the plain norm of [1e200, 0, 0] overflows
         if (!(norm > 1e-12) || !std::isfinite(norm)) {
           entry.fail_key("normal", "expected a nonzero vector (the side grains live on), got " + show_vec3(normal));
         }
@@ -760,8 +775,8 @@ class SceneParser {
       } else {
         entry.allow_only({"type", "center", "half_extents", "orientation", "material"}, "for a wall of type = \"box\"");
         wall.is_plane = false;
-        wall.position = entry.vec3("center");
-        wall.half_extents = entry.vec3("half_extents", positive());
+        wall.position = entry.vec3("center", coordinate());
+        wall.half_extents = entry.vec3("half_extents", length());
         wall.orientation = entry.orientation_or_identity("orientation");
       }
       wall.material = material_of(entry);
@@ -781,7 +796,7 @@ class SceneParser {
         entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material"},
                          "for a body of shape = \"sphere\"");
         grain.radius = entry.number("radius", positive());
-        grain.position = entry.vec3("position");
+        grain.position = entry.vec3("position", coordinate());
         grain.orientation = entry.orientation_or_identity("orientation");
       }
       grain.velocity = entry.vec3_or("velocity", Vec3::Zero());
@@ -825,7 +840,7 @@ class SceneParser {
                                       "[[x, y, z], ...] with faces, or diameter = D for a random one"
                                     : "expected only one of file, vertices and diameter");
     }
-    const Vec3 position = entry.vec3("position");
+    const Vec3 position = entry.vec3("position", coordinate());
     const Quat orientation = entry.orientation_or_identity("orientation");
     PolyhedronPose pose;  // the body frame in the frame the shape was given in
     ConvexPolyhedron shape;
@@ -966,6 +981,17 @@ class SceneParser {
     return sizes;
   }
 
+  /// Refuses (on `entry`'s `key`) a generator whose `count` grains, with the scene's grains so
+  /// far, would not fit in this process's memory (simulation/memory_estimate.hpp): checked
+  /// before the grains are made, so a scene of 10^8 grains fails at once with the estimate.
+  void check_memory(const TableReader& entry, std::string_view key, std::uint64_t count, bool polyhedra) const {
+    std::uint64_t spheres = 0, polyhedron_grains = 0;
+    for (const GrainSpec& grain : grains_) ++(grain.polyhedron ? polyhedron_grains : spheres);
+    (polyhedra ? polyhedron_grains : spheres) += count;
+    const std::string shortfall = memory_shortfall(spheres, polyhedron_grains);
+    if (!shortfall.empty()) entry.fail_key(key, shortfall);
+  }
+
   void parse_generators() {
     const auto entries = root_.tables("generators");
     const auto max_count = static_cast<std::int64_t>(max_packed_grains);
@@ -993,16 +1019,17 @@ class SceneParser {
         if (type == "box_deposit") {
           BoxDepositOptions options;
           options.count = static_cast<std::uint64_t>(entry.integer("count", 1, max_count));
+          check_memory(entry, "count", options.count, shape != "sphere");
           options.sizes = parse_sizes(entry);
-          options.region_min = entry.vec3("region_min");
-          options.region_max = entry.vec3("region_max");
+          options.region_min = entry.vec3("region_min", coordinate());
+          options.region_max = entry.vec3("region_max", coordinate());
           for (int axis = 0; axis < 3; ++axis) {
             if (!(options.region_max[axis] > options.region_min[axis])) {
               entry.fail_key("region_max", "expected region_max > region_min on every axis, got " +
                                                show_vec3(options.region_max) + " vs " + show_vec3(options.region_min));
             }
           }
-          options.cell_size = entry.number_or("cell_size", 0.0, non_negative());
+          options.cell_size = entry.number_or("cell_size", 0.0, length_or_zero());
           const double cell = box_deposit_cell_size(options);
           if (cell < 2.0 * options.sizes.radius_max) {
             entry.fail_key("cell_size", "expected 0 (automatic) or a cell >= 2 radius_max (" +
@@ -1019,25 +1046,28 @@ class SceneParser {
         } else if (type == "cubic_grid") {
           CubicGridOptions options;
           options.cells_per_side = static_cast<std::uint64_t>(entry.integer("cells_per_side", 1, 464));
+          check_memory(entry, "cells_per_side", options.cells_per_side * options.cells_per_side * options.cells_per_side,
+                       shape != "sphere");
           options.sizes = parse_sizes(entry);
-          options.cell_size = entry.number_or("cell_size", 0.0, non_negative());
+          options.cell_size = entry.number_or("cell_size", 0.0, length_or_zero());
           if (options.cell_size > 0.0 && options.cell_size < 2.0 * options.sizes.radius_max) {
             entry.fail_key("cell_size", "expected 0 (automatic: 2 radius_max) or a cell >= 2 radius_max (" +
                                             show(2.0 * options.sizes.radius_max) + " m), got " +
                                             show(options.cell_size));
           }
-          options.center = entry.vec3_or("center", Vec3::Zero());
+          options.center = entry.optional_vector<3>("center", coordinate()).value_or(Vec3::Zero());
           packed = cubic_grid_packing(options, seed);
         } else {
           SphereCloudOptions options;
           options.count = static_cast<std::uint64_t>(entry.integer("count", 1, max_count));
+          check_memory(entry, "count", options.count, shape != "sphere");
           options.sizes = parse_sizes(entry);
-          options.center = entry.vec3_or("center", Vec3::Zero());
+          options.center = entry.optional_vector<3>("center", coordinate()).value_or(Vec3::Zero());
           if (entry.has("cloud_radius") == entry.has("volume_fraction")) {
             entry.fail_table("expected exactly one of cloud_radius (m) and volume_fraction (grain volume / ball volume)");
           }
           if (entry.has("cloud_radius")) {
-            options.radius = entry.number("cloud_radius", positive());
+            options.radius = entry.number("cloud_radius", length());
             if (options.radius < options.sizes.radius_max) {
               entry.fail_key("cloud_radius", "expected a cloud radius >= the largest grain radius (" +
                                                  show(options.sizes.radius_max) + " m), got " + show(options.radius));
@@ -1332,16 +1362,14 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name) {
 
 Scene load_scene_file(const std::filesystem::path& path) {
   const std::string name = path.string();
-  std::error_code error;
-  if (std::filesystem::is_directory(path, error)) {
-    throw SceneError(name, 0, "", "is a folder, expected a scene file (.toml)");
+  std::string text;
+  try {
+    // Regular files of at most 256 MiB (core/input_file.hpp): /dev/zero or a FIFO is refused.
+    text = read_input_file(path, max_scene_file_bytes, "scene file");
+  } catch (const InputFileError& e) {
+    throw SceneError(name, 0, "", e.reason);
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(name, 0, "", "cannot open the scene file (missing or unreadable)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw SceneError(name, 0, "", "cannot read the scene file");
-  return parse_scene(text.str(), name);
+  return parse_scene(text, name);
 }
 
 std::string default_scene_toml(DefaultScene variant) {
@@ -1505,6 +1533,7 @@ std::string scene_to_toml(const Scene& scene) {
   }
   out << "progress_interval = " << format_number(output.progress_interval) << "\n";
   out << "vtk = " << (output.write_vtk ? "true" : "false") << "\n";
+  if (output.keep_checkpoint_every > 0) out << "keep_checkpoint_every = " << output.keep_checkpoint_every << "\n";
 
   for (const Material& material : model.materials) {
     out << "\n[[materials]]\nname = " << toml_string(material.name) << "\ndensity = " << format_number(material.density)

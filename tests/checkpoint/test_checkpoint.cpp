@@ -218,6 +218,25 @@ TEST(CheckpointFolder, KeepsTheNewestTwoAndNoTemporaryFile) {
   fs::remove_all(folder);
 }
 
+// [output] keep_checkpoint_every = 300 with a checkpoint every 100 steps up to 1000: the newest
+// two (1000, 900) and the first of each interval of 300 steps (100 in [0, 300), 300 in
+// [300, 600), 600 in [600, 900), 900 in [900, 1200)) remain, whatever the order of deletions.
+TEST(CheckpointFolder, RetentionKeepsTheNewestTwoAndTheFirstOfEveryInterval) {
+  const fs::path folder = fresh_folder("retention");
+  for (std::int64_t step = 100; step <= 1000; step += 100) write_checkpoint(folder, sample_checkpoint(step), 2, 300);
+  std::vector<std::int64_t> steps;
+  for (const fs::path& file : list_checkpoints(folder)) steps.push_back(checkpoint_step(file));
+  EXPECT_EQ(steps, (std::vector<std::int64_t>{1000, 900, 600, 300, 100}));
+  // Resuming from 300 sets the later ones aside: listings no longer see them.
+  const std::vector<fs::path> aside = set_aside_checkpoints_after(folder, 300);
+  EXPECT_EQ(aside.size(), 3u);
+  steps.clear();
+  for (const fs::path& file : list_checkpoints(folder)) steps.push_back(checkpoint_step(file));
+  EXPECT_EQ(steps, (std::vector<std::int64_t>{300, 100}));
+  EXPECT_TRUE(fs::exists(folder / "step-000000001000.ckpt.superseded"));
+  fs::remove_all(folder);
+}
+
 TEST(CheckpointFolder, DamagedNewestFallsBackToThePreviousOne) {
   const fs::path folder = fresh_folder("fallback");
   write_checkpoint(folder, sample_checkpoint(10));

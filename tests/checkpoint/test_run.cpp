@@ -8,7 +8,9 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
+#include <sstream>
 
 #include "postprocessing/run_reader.hpp"
 #include "simulation/scene_file.hpp"
@@ -192,6 +194,43 @@ TEST(Restart, LongerEndTimeExtendsTheRunWithTheSameSnapshotCadence) {
   const RunSummary extended = run_scene(scene, resume);
   EXPECT_EQ(extended.final_step, 400);
   EXPECT_EQ(extended.snapshots, 201);  // still every 2 steps
+}
+
+// run.h5 is not needed to resume (issue 17): missing, or damaged (garbage bytes where the file
+// was), the run goes on from the checkpoint in a new run.h5 (the damaged one set aside) and ends
+// bit-identical; the new file opens with the checkpoint's state and holds the rows after it,
+// equal to the reference run's rows for those steps.
+TEST(Restart, ResumesWithoutAnIntactRunFile) {
+  const RunSummary reference = run_scene(scene_in("no_file_reference"), control_for());
+  const RunRecord reference_record = read_record(reference.run_file);
+  for (const std::string damage : {"missing", "garbage"}) {
+    SCOPED_TRACE(damage);
+    const Scene scene = scene_in("no_file_" + damage);
+    RunControl control = control_for();
+    control.checkpoint_every_steps = 100;
+    control.checkpoints_kept = 10;
+    run_scene(scene, control);
+    const fs::path directory = scene.run.output.directory;
+    const fs::path checkpoint_file = checkpoint_folder(directory) / "step-000000000200.ckpt";
+    const Checkpoint checkpoint = read_checkpoint(checkpoint_file);
+    fs::remove(directory / "run.h5");
+    if (damage == "garbage") std::ofstream(directory / "run.h5") << "not an HDF5 file at all";
+    std::ostringstream warnings;
+    RunControl resume = control;
+    resume.resume = &checkpoint;
+    resume.warnings = &warnings;
+    const RunSummary summary = run_scene(scene, resume);
+    EXPECT_EQ(summary.state_hash, reference.state_hash);
+    EXPECT_NE(warnings.str().find("cannot be reopened"), std::string::npos) << warnings.str();
+    EXPECT_EQ(fs::exists(directory / "run.h5.damaged-at-step-200"), damage == "garbage");
+    const RunRecord record = read_record(summary.run_file);
+    ASSERT_EQ(record.series.step.size(), 200u);
+    EXPECT_EQ(record.series.step.front(), 201);
+    EXPECT_EQ(record.series.kinetic_energy.back(), reference_record.series.kinetic_energy.back());
+    ASSERT_FALSE(record.snapshot_steps.empty());
+    EXPECT_EQ(record.snapshot_steps.front(), 200);
+    EXPECT_EQ(record.snapshot_hashes.back(), reference_record.snapshot_hashes.back());
+  }
 }
 
 TEST(Restart, ACheckpointOfAnotherSceneIsRefused) {

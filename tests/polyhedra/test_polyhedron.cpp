@@ -210,5 +210,52 @@ TEST(PolyhedronBuild, RejectsBadMeshes) {
   expect_error(lonely, "vertex 8 is on no face");
 }
 
+/// A triangulated UV sphere of radius r: n_lat rings of n_lon vertices and the two poles.
+Mesh uv_sphere_mesh(int n_lat, int n_lon, double r) {
+  Mesh m;
+  m.vertices.emplace_back(0, 0, r);
+  for (int i = 1; i <= n_lat; ++i) {
+    const double t = M_PI * i / (n_lat + 1);
+    for (int j = 0; j < n_lon; ++j) {
+      const double p = 2 * M_PI * j / n_lon;
+      m.vertices.emplace_back(r * std::sin(t) * std::cos(p), r * std::sin(t) * std::sin(p), r * std::cos(t));
+    }
+  }
+  m.vertices.emplace_back(0, 0, -r);
+  const auto at = [&](int i, int j) { return 1 + (i - 1) * n_lon + (j % n_lon); };
+  const int last = static_cast<int>(m.vertices.size()) - 1;
+  for (int j = 0; j < n_lon; ++j) m.faces.push_back({0, at(1, j), at(1, j + 1)});
+  for (int i = 1; i < n_lat; ++i) {
+    for (int j = 0; j < n_lon; ++j) {
+      m.faces.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      m.faces.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  }
+  for (int j = 0; j < n_lon; ++j) m.faces.push_back({last, at(n_lat, j + 1), at(n_lat, j)});
+  return m;
+}
+
+// Meshes of >= 256 vertices are checked on CGAL's hull (each face's highest vertex found by an
+// uphill walk) instead of against every vertex: the supporting-plane offsets must be the maxima
+// over all vertices, as a brute-force scan finds them, and a vertex bumped out or dented in by 1%
+// of the radius must still be caught.
+TEST(PolyhedronBuild, LargeMeshesAreCheckedOnTheHull) {
+  const Mesh sphere = uv_sphere_mesh(30, 30, 2.0);  // 902 vertices, 1800 triangles
+  const ConvexPolyhedron shape = make_convex_polyhedron(sphere.vertices, sphere.faces);
+  ASSERT_EQ(shape.faces.size(), 1800u);
+  for (std::size_t f = 0; f < shape.faces.size(); ++f) {
+    double highest = -1e300;
+    for (const Vec3& v : shape.vertices) highest = std::max(highest, shape.face_normals[f].dot(v));
+    EXPECT_NEAR(shape.face_offsets[f], highest, 1e-14 * 2.0) << "face " << f;
+  }
+
+  Mesh bumped = sphere;
+  bumped.vertices[400] *= 1.01;
+  expect_error(bumped, "not convex");
+  Mesh dented = sphere;
+  dented.vertices[400] *= 0.99;
+  expect_error(dented, "not convex");
+}
+
 }  // namespace
 }  // namespace rubble

@@ -680,5 +680,40 @@ INSTANTIATE_TEST_SUITE_P(Corpus, BadScene, ::testing::ValuesIn(bad_scene_files()
                            return name;
                          });
 
+// Huge but finite quaternions and wall normals are directions: [1e200, 0, 1e200, 0] is 90 degrees
+// about y (its plain norm overflowed and made the zero quaternion, a grain that never turned), a
+// normal of [0, 0, 1e200] is +z.
+TEST(ParseScene, HugeQuaternionsAndNormalsAreNormalisedWithoutOverflow) {
+  const Scene scene = parse_scene(R"(
+[time]
+dt = 1e-4
+end_time = 0.01
+[[materials]]
+name = "rock"
+density = 2500.0
+[[contact_laws]]
+materials = ["rock", "rock"]
+friction = 0.3
+[[walls]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1e200]
+[[bodies]]
+shape = "sphere"
+radius = 0.01
+position = [0.0, 0.0, 0.5]
+orientation = [1e200, 0.0, 1e200, 0.0]
+)",
+                                  "huge.toml");
+  const Quat q = scene.state.orientation[0];
+  EXPECT_NEAR(q.w(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(q.y(), std::sqrt(0.5), 1e-15);
+  EXPECT_EQ(q.x(), 0.0);
+  EXPECT_EQ(q.z(), 0.0);
+  ASSERT_EQ(scene.model.planes.size(), 1u);
+  const Vec3 normal = scene.state.orientation[1] * scene.model.planes[0].normal;  // body 1: the wall
+  EXPECT_NEAR(normal.z(), 1.0, 1e-15);
+}
+
 }  // namespace
 }  // namespace rubble

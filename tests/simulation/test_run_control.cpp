@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace rubble {
@@ -124,6 +125,21 @@ TEST(EtaSeconds, FromTheSimulatedTimeRate) {
   EXPECT_DOUBLE_EQ(eta_seconds(10.0, 0.0, 100.0, 400.0), 30.0);  // 10 s wall per 100 s simulated
   EXPECT_DOUBLE_EQ(eta_seconds(10.0, 50.0, 100.0, 100.0), 0.0);
   EXPECT_LT(eta_seconds(0.0, 0.0, 0.0, 100.0), 0.0);
+}
+
+// The step-count bound that holds [time] end_time and --end-time alike: 10^12 steps of 1e-4 s is
+// 1e8 s; one step more is refused, as are non-finite and sub-step end times.
+TEST(EndTimeProblem, BoundsTheStepCount) {
+  EXPECT_FALSE(end_time_problem(1e8, 0.0, 1e-4).has_value());
+  EXPECT_FALSE(end_time_problem(1e-4, 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(1e8 * (1.0 + 1e-12), 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(1e9, 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(1e308, 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(std::numeric_limits<double>::infinity(), 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(std::nan(""), 0.0, 1e-4).has_value());
+  EXPECT_TRUE(end_time_problem(0.5e-4, 0.0, 1e-4).has_value());
+  // Counted from the start time: 10^12 steps after t = 1e8 s is fine up to 2e8 s.
+  EXPECT_FALSE(end_time_problem(1.9e8, 1e8, 1e-4).has_value());
 }
 
 }  // namespace

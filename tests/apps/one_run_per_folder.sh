@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# One run per output folder (issue 17), with real processes: while a first `rubble run` writes
+# into DIR, a second `rubble run --out DIR` and a `rubble run --resume DIR` are refused with exit 2
+# and a message naming the first run's pid, and touch nothing: the first run goes on, stops on
+# SIGTERM with its checkpoint, and its run.h5 holds every step once up to that checkpoint. Then a
+# run killed with SIGKILL leaves its pid in DIR/rubble.lock; the next run takes the stale lock
+# over (saying whose it was) and resumes.
+#
+# usage: one_run_per_folder.sh RUBBLE SCENE WORKDIR
+set -u
+rubble=$1 scene=$2 work=$3
+rm -rf "$work" && mkdir -p "$work"
+out=$work/run
+fail() {
+  echo "one_run_per_folder: FAILED: $*"
+  for log in "$work"/*.log; do echo "--- $log"; head -c 2000 "$log"; done
+  exit 1
+}
+# Waits until PID owns DIR (its pid in the lock file) and a checkpoint exists.
+wait_for_owner() {
+  local pid=$1
+  for _ in $(seq 1 3000); do
+    if [ "$(cat "$out/rubble.lock" 2> /dev/null)" = "$pid" ] && ls "$out/checkpoints/"step-*.ckpt > /dev/null 2>&1; then
+      return 0
+    fi
+    kill -0 "$pid" 2> /dev/null || fail "run $pid ended before the test could use it"
+    sleep 0.01
+  done
+  fail "run $pid never took the lock"
+}
+# Every step once, 1..N, in run.h5's series, N = the newest checkpoint's step.
+check_run_file() {
+  /usr/bin/python3 - "$out" << 'EOF' || fail "run.h5 is not intact"
+import glob, os, sys
+import h5py
+import numpy as np
+out = sys.argv[1]
+newest = max(int(os.path.basename(p)[5:17]) for p in glob.glob(f"{out}/checkpoints/step-*.ckpt"))
+with h5py.File(f"{out}/run.h5", "r") as f:
+    steps = f["series/step"][:]
+print(f"run.h5: {len(steps)} series rows, newest checkpoint at step {newest}")
+assert np.array_equal(steps, np.arange(1, newest + 1)), (steps[:5], steps[-5:], newest)
+EOF
+}
+
+# 1. A second writer while the first runs.
+"$rubble" run "$scene" --out "$out" --end-time 1000 --checkpoint-every 500 -q > "$work/first.log" 2>&1 &
+first=$!
+wait_for_owner "$first"
+size_before=$(stat -c %s "$out/run.h5")
+"$rubble" run "$scene" --out "$out" > "$work/second.log" 2>&1
+code=$?
+[ "$code" = 2 ] || fail "a second run into the same folder: exit $code, expected 2"
+grep -qF "in use by another rubble run (pid $first;" "$work/second.log" || fail "the refusal does not name pid $first"
+"$rubble" run --resume "$out" > "$work/resume_live.log" 2>&1
+code=$?
+[ "$code" = 2 ] || fail "--resume of a live folder: exit $code, expected 2"
+grep -qF "(pid $first;" "$work/resume_live.log" || fail "the --resume refusal does not name pid $first"
+kill -0 "$first" 2> /dev/null || fail "the first run died"
+size_after=$(stat -c %s "$out/run.h5")
+[ "$size_after" -ge "$size_before" ] || fail "run.h5 shrank from $size_before to $size_after bytes"
+kill -TERM "$first"
+wait "$first"
+code=$?
+[ "$code" = 143 ] || fail "the first run, stopped by SIGTERM: exit $code, expected 143"
+[ ! -s "$out/rubble.lock" ] || fail "the lock file still names an owner after a clean stop"
+check_run_file
+echo "one_run_per_folder: a second writer and a --resume were refused (exit 2, pid $first named); the first run's output is intact"
+
+# 2. A stale lock: the owner is SIGKILLed, its pid stays in the file.
+"$rubble" run --resume "$out" --end-time 1000 --checkpoint-every 500 -q > "$work/killed.log" 2>&1 &
+killed=$!
+wait_for_owner "$killed"
+sleep 0.5  # past the reopen of run.h5, into the stepping
+kill -KILL "$killed"
+wait "$killed"
+[ "$(cat "$out/rubble.lock")" = "$killed" ] || fail "the lock file does not hold the killed run's pid $killed"
+"$rubble" run --resume "$out" --end-time 1000 --checkpoint-every 500 > "$work/takeover.log" 2>&1 &
+takeover=$!
+wait_for_owner "$takeover"
+grep -qF "took over the stale lock of pid $killed" "$work/takeover.log" || fail "no note of the stale lock of pid $killed"
+kill -TERM "$takeover"
+wait "$takeover"
+code=$?
+[ "$code" = 143 ] || fail "the run that took over, stopped by SIGTERM: exit $code, expected 143"
+check_run_file
+echo "one_run_per_folder: the stale lock of SIGKILLed pid $killed was taken over; 2 passed, 0 failed"
