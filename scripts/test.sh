@@ -11,7 +11,15 @@ echo "== release build (-Wall -Wextra -Werror) =="
 cmake -S . -B build/ci -G Ninja -DCMAKE_BUILD_TYPE=Release -DRUBBLE_WERROR=ON
 cmake --build build/ci -j "$jobs"
 echo "== tests =="
-ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 900
+# Two long polyhedron pours (10^4 steps of 150-200 random polyhedra each, several CPU minutes
+# since the solver's residual became relative to the impulses) are left out of the gate and run
+# with RUBBLE_LONG_TESTS=1 (README, "Tests"): the gate must finish on a shared 2-core machine.
+long_tests='TwoHundredPolyhedraPouredIntoABoxComeToRest|PileOfPolyhedraAtRestWithDefaults'
+ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 900 -E "$long_tests"
+if [ "${RUBBLE_LONG_TESTS:-0}" = 1 ]; then
+  echo "== long physics tests =="
+  ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 3600 -R "$long_tests"
+fi
 
 echo "== address + undefined-behaviour sanitizer build =="
 # The Python module is not built here: a sanitized extension cannot be loaded by a plain

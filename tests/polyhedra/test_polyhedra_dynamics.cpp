@@ -163,7 +163,7 @@ PourResult pour(long steps, double time_step) {
   PourResult result;
   const double d = result.d;
   s.options.detection.alert_distance = 0.1 * d;
-  s.options.solver.tolerance = 1e-4;
+  s.options.solver.tolerance = 1e-3;
   s.options.solver.max_iterations = 300;
   testing::add_polyhedra_pour(s, 200, d, 0, 7);
   auto kinetic_energy = [&] {

@@ -365,8 +365,8 @@ double deepest_grain_overlap(const TestScene& s) {
 
 // ---------------------------------------------------------------------------------------------
 // 7. A pile of 150 random CGAL polyhedra (10-20 vertices, d = 0.1 m) poured into a box of plane
-// walls (0.92 m square), mu = 0.5, e = 0, alert distance 0.1 d, tolerance 1e-4 (the residual relative to
-// the impulses: about what 1e-5 to 1e-6 was with the earlier measure), at most 300 sweeps,
+// walls (0.92 m square), mu = 0.5, e = 0, alert distance 0.1 d, tolerance 1e-3 (the residual relative to
+// the impulses: about what 1e-5 was with the earlier, diluted measure), at most 300 sweeps,
 // with the DEFAULT overlap recovery (nlgs_solver/overlap_recovery.hpp). The pour runs at
 // h = 2.5e-4 s until the kinetic energy is below 1e-6 of its peak (after t = 1 s); the pile then
 // settles at h = 1 ms until 1 000 steps in a row stay below 1 mm/s (at most 12 000 steps) and rests
@@ -383,7 +383,7 @@ TEST(StabilityPolyhedra, PileOfPolyhedraAtRestWithDefaults) {
   const double d = 0.1;
   s.options.integrator.time_step = 2.5e-4;
   s.options.detection.alert_distance = 0.1 * d;
-  s.options.solver.tolerance = 1e-4;
+  s.options.solver.tolerance = 1e-3;
   s.options.solver.max_iterations = 300;
   testing::add_polyhedra_pour(s, 150, d, 1000, 11);
   double peak = 0.0, energy = 0.0, pour_overlap = 0.0;
