@@ -26,7 +26,7 @@ class StageTimer {
 };
 
 /// Self-gravity acceleration of every body (zero for fixed bodies): point masses at the grains'
-/// centres of mass (seed 001 sec. 2.3), by direct sum or tree. Returns the potential energy of the
+/// centres of mass (the LMGC90 accretion paper, sec. 2.3), by direct sum or tree. Returns the potential energy of the
 /// grains, 1/2 sum m_i phi_i, from the same evaluation.
 double self_gravity_accelerations(const Model& model, const State& state, const gravity::GravityOptions& options,
                                   std::vector<Vec3>& acceleration_out) {
