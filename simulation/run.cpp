@@ -172,6 +172,33 @@ std::string short_reason(const std::string& what) {
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) { return run_scene(scene, scene.state, control); }
 
+SeriesRow series_row(const Model& model, const State& state, const StepReport& report, const GravitySettings& gravity,
+                     double wall_seconds, std::optional<double>& potential) {
+  SeriesRow row;
+  row.step = state.step;
+  row.time = state.time;
+  row.kinetic_energy = kinetic_energy(model, state);
+  row.contacts = static_cast<std::int64_t>(report.contacts);
+  row.active_contacts = static_cast<std::int64_t>(report.solver.active_contacts);
+  row.iterations = report.solver.iterations;
+  row.residual = report.solver.residual;
+  row.wall_seconds = wall_seconds;
+  if (report.potential_energy_known) {
+    potential = report.potential_energy;
+  } else if (potential) {
+    *potential -= report.work_of_held_field;
+  } else {
+    potential = gravitational_potential_energy(model, state, gravity);
+  }
+  row.potential_energy = *potential;
+  row.total_energy = row.kinetic_energy + row.potential_energy;
+  const GrainMomenta momenta = grain_momenta(model, state);
+  row.linear_momentum = momenta.linear;
+  row.angular_momentum = momenta.angular;
+  row.stage_seconds = report.stage_seconds;
+  return row;
+}
+
 RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& control) {
   const Model& model = scene.model;
   const RunOptions& run = scene.run;
@@ -381,29 +408,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     const auto step_end = Clock::now();
     const double step_seconds = seconds_between(step_start, step_end);
 
-    SeriesRow row;
-    row.step = state.step;
-    row.time = state.time;
-    row.kinetic_energy = kinetic_energy(model, state);
-    row.contacts = static_cast<std::int64_t>(report.contacts);
-    row.active_contacts = static_cast<std::int64_t>(report.solver.active_contacts);
-    row.iterations = report.solver.iterations;
-    row.residual = report.solver.residual;
-    row.wall_seconds = step_seconds;
-    // Conservation monitor: potential energy from the step's own gravity evaluation (on steps that
-    // held the self-gravity field, the last value minus the held forces' work; after a resume into
-    // such a step, one fresh evaluation that changes nothing in the run).
-    if (report.potential_energy_known) {
-      potential = report.potential_energy;
-    } else {
-      if (!potential) potential = gravitational_potential_energy(model, before, run.step.gravity);
-      *potential -= report.work_of_held_field;
-    }
-    row.potential_energy = *potential;
-    row.total_energy = row.kinetic_energy + row.potential_energy;
-    const GrainMomenta momenta = grain_momenta(model, state);
-    row.linear_momentum = momenta.linear;
-    row.angular_momentum = momenta.angular;
+    const SeriesRow row = series_row(model, state, report, run.step.gravity, step_seconds, potential);
     // A grain that moves further than the alert distance in one step can cross a wall or another
     // grain between two detections (tunnelling): warned once, with the step and the body.
     if (!tunnelling_warned && control.progress) {
@@ -421,7 +426,6 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
         }
       }
     }
-    row.stage_seconds = report.stage_seconds;
     output([&] { file->append_series(row); });
 
     for (std::size_t s = 0; s < summary.stage_seconds.size(); ++s) summary.stage_seconds[s] += report.stage_seconds[s];

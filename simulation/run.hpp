@@ -6,9 +6,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
+#include "postprocessing/run_file.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/scene.hpp"
 
@@ -85,6 +87,14 @@ struct RunSummary {
   double output_seconds = 0.0;         ///< s of wall time writing series, snapshots and checkpoints
   std::int64_t polish_attempts = 0;    ///< Newton polishes of the contact problem (SolverOptions::polish_after)
 };
+
+/// The series row of a step that just ended in `state` (run.h5 /series, docs/output-format.md),
+/// with the conservation monitor: `potential` carries the grains' potential energy from step to
+/// step (a step that held the self-gravity field reports only the held forces' work; with no
+/// previous value the energy is evaluated afresh at `state`, which changes nothing in the run).
+/// stage_seconds views report.stage_seconds.
+SeriesRow series_row(const Model& model, const State& state, const StepReport& report, const GravitySettings& gravity,
+                     double wall_seconds, std::optional<double>& potential);
 
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
 /// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in

@@ -110,11 +110,6 @@ std::size_t first_non_finite_body(const State& state) {
 }  // namespace
 
 const StepReport& Simulation::advance() {
-  // The run loop's conservation monitor starts from the potential energy before a step that
-  // holds the self-gravity field (run.cpp): evaluated here, before the state moves on.
-  if (record_ && !potential_energy_ && scene_.run.step.gravity.evaluate_every > 1) {
-    potential_energy_ = gravitational_potential_energy(scene_.model, state_, scene_.run.step.gravity);
-  }
   const auto start = std::chrono::steady_clock::now();
   try {
     last_report_ = step(scene_.model, state_, workspace_, scene_.run.step);
@@ -140,27 +135,7 @@ const StepReport& Simulation::advance() {
     at_rest_ = rest_.update(state_.time, energy / static_cast<double>(grain_count_)) || at_rest_;
   }
   if (record_) {
-    SeriesRow row;
-    row.step = state_.step;
-    row.time = state_.time;
-    row.kinetic_energy = energy;
-    row.contacts = static_cast<std::int64_t>(last_report_.contacts);
-    row.active_contacts = static_cast<std::int64_t>(last_report_.solver.active_contacts);
-    row.iterations = last_report_.solver.iterations;
-    row.residual = last_report_.solver.residual;
-    row.wall_seconds = step_seconds;
-    // The conservation monitor's columns, as run_scene fills them.
-    if (last_report_.potential_energy_known) {
-      potential_energy_ = last_report_.potential_energy;
-    } else {
-      *potential_energy_ -= last_report_.work_of_held_field;
-    }
-    row.potential_energy = *potential_energy_;
-    row.total_energy = row.kinetic_energy + row.potential_energy;
-    const GrainMomenta momenta = grain_momenta(scene_.model, state_);
-    row.linear_momentum = momenta.linear;
-    row.angular_momentum = momenta.angular;
-    row.stage_seconds = last_report_.stage_seconds;
+    const SeriesRow row = series_row(scene_.model, state_, last_report_, scene_.run.step.gravity, step_seconds, potential_energy_);
     record_->append_series(row);
     if ((state_.step - record_first_step_) % snapshot_period_ == 0 || at_rest_) write_snapshot();
   }
