@@ -197,7 +197,7 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   // Metrics of every chosen snapshot, the impulse distribution of the last one, VTK on request.
   const double h = options.time_step > 0.0 ? options.time_step : reader.time_step();
   std::unique_ptr<VtkSeries> vtk;
-  if (options.write_vtk) vtk = std::make_unique<VtkSeries>(out / "vtk", model, VtkSeriesOptions{h, 0.0});
+  if (options.write_vtk) vtk = std::make_unique<VtkSeries>(out / "vtk", model, VtkSeriesOptions{h, 0.0, {}});
   std::vector<std::vector<double>> rows;
   ImpulseHistogram histogram;
   const std::vector<std::size_t> indices = chosen_snapshots(reader.snapshot_count(), options.every);

@@ -172,12 +172,73 @@ TEST(Restart, StopFlagWritesACheckpointAndResumesIdentically) {
 
   const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
   EXPECT_EQ(loaded.checkpoint.state.step, 1);
+  {
+    // The state at the stop is also the run file's last snapshot (the initial one, then step 1),
+    // and the file says why the run ended.
+    const RunReader reader = RunReader::open(stopped.run_file);
+    EXPECT_EQ(reader.status(), "interrupted");
+    ASSERT_EQ(reader.snapshot_count(), 2u);
+    const RunSnapshot last = reader.read_snapshot(1);
+    EXPECT_EQ(last.state.step, 1);
+    EXPECT_EQ(state_hash(last.state), state_hash(loaded.checkpoint.state));
+    EXPECT_EQ(state_hash(last.state), stopped.state_hash);
+  }
   RunControl resume = control_for();
   resume.resume = &loaded.checkpoint;
   const RunSummary finished = run_scene(scene, resume);
   EXPECT_FALSE(finished.interrupted);
   EXPECT_EQ(finished.state_hash, reference.state_hash);
+  // The snapshot of the stop is gone (step 1 is off the 25-step cadence): the same file as the
+  // uninterrupted run's.
   expect_same_record(read_record(finished.run_file), read_record(reference.run_file));
+  EXPECT_EQ(RunReader::open(finished.run_file).status(), "end_time");
+}
+
+/// The number of data sets listed by a ParaView collection (.pvd), and their times.
+std::vector<double> pvd_times(const fs::path& pvd) {
+  std::ifstream in(pvd);
+  std::vector<double> times;
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto at = line.find("timestep=\"");
+    if (at != std::string::npos) times.push_back(std::stod(line.substr(at + 10)));
+  }
+  return times;
+}
+
+// [output] vtk = true: the ParaView series is written during the run, one entry per snapshot of
+// the run file (17 here: step 0 and every 25 steps to 400), also across a stop and a resume (the
+// stop's own snapshot is replaced by the resumed run's next ones).
+TEST(RunScene, VtkTrueWritesTheParaViewSeriesWithTheSnapshots) {
+  Scene scene = scene_in("vtk");
+  scene.run.output.write_vtk = true;
+  RunControl control = control_for();
+  const std::atomic<int> stop{2};  // as if SIGINT came during the first step
+  control.stop_requested = &stop;
+  const RunSummary stopped = run_scene(scene, control);
+  const fs::path vtk = fs::path(scene.run.output.directory) / "vtk";
+  EXPECT_EQ(pvd_times(vtk / "spheres.pvd"), (std::vector<double>{0.0, 1e-4}));
+
+  const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
+  RunControl resume = control_for();
+  resume.resume = &loaded.checkpoint;
+  const RunSummary finished = run_scene(scene, resume);
+  EXPECT_EQ(finished.snapshots, 17);
+  const RunReader reader = RunReader::open(finished.run_file);
+  std::vector<double> snapshot_times;
+  for (std::size_t k = 0; k < reader.snapshot_count(); ++k) snapshot_times.push_back(reader.read_snapshot(k).state.time);
+  for (const char* kind : {"spheres", "contacts", "walls"}) {
+    SCOPED_TRACE(kind);
+    const std::vector<double> times = pvd_times(vtk / (std::string(kind) + ".pvd"));
+    ASSERT_EQ(times.size(), 17u);
+    for (std::size_t k = 0; k < times.size(); ++k) EXPECT_NEAR(times[k], snapshot_times[k], 1e-12);
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%s_%06zu.vtp", kind, k);
+      EXPECT_TRUE(fs::exists(vtk / name)) << name;
+    }
+  }
+  EXPECT_FALSE(fs::exists(vtk / "polyhedra.pvd"));  // no polyhedra in the scene
 }
 
 TEST(Restart, LongerEndTimeExtendsTheRunWithTheSameSnapshotCadence) {
