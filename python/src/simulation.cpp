@@ -162,6 +162,11 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
   const std::vector<RunParameter> parameters = run_parameters(scene_, snapshot_period_);
   record_.emplace(RunFile::create(directory / "run.h5", scene_.model, scene_text_, names, parameters));
   record_->hold_metadata_until_flush();
+  record_vtk_.reset();
+  if (output.write_vtk) {
+    record_vtk_.emplace(directory / "vtk", scene_.model,
+                        VtkSeriesOptions{scene_.run.step.integrator.time_step, 0.0, {}});
+  }
   record_first_step_ = state_.step;
   progress_.first_step = state_.step;
   potential_energy_.reset();  // the run loop's monitor starts afresh with the file
@@ -174,6 +179,7 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
 void Simulation::write_snapshot() {
   if (!record_ || last_snapshot_step_ == state_.step) return;
   record_->write_snapshot(state_, workspace_.contacts);
+  if (record_vtk_) record_vtk_->write(state_, workspace_.contacts);
   last_snapshot_step_ = state_.step;
 }
 
@@ -186,6 +192,7 @@ void Simulation::close_record() {
                                                               : RunStatus::closed);
   record_->flush();
   record_.reset();
+  record_vtk_.reset();
 }
 
 std::filesystem::path Simulation::record_path() const { return record_ ? record_->path() : std::filesystem::path(); }

@@ -171,6 +171,21 @@ def test_vtk_series_and_post_process(tmp_path, tiny_deposit):
         assert f["run"].attrs["status"] == "closed"  # closed at t = 5 ms, before its end time (10 ms)
 
 
+def test_recording_with_vtk_true_writes_the_paraview_series(tmp_path, tiny_deposit):
+    # [output] vtk = true is not ignored by a Python recording: one ParaView entry per snapshot.
+    text = open(tiny_deposit, encoding="utf-8").read().replace("[output]\n", "[output]\nvtk = true\n", 1)
+    scene_path = tmp_path / "vtk.toml"
+    scene_path.write_text(text)
+    sim = rubble.Simulation(rubble.load_scene(scene_path))
+    sim.record(tmp_path / "run", end_time=0.1)  # snapshot_interval 0.02 s: t = 0, 0.02, ..., 0.1
+    sim.run(until=0.1)
+    sim.close()
+    with h5py.File(tmp_path / "run" / "run.h5") as f:
+        snapshots = len(f["snapshots"])
+    pvd = (tmp_path / "run" / "vtk" / "spheres.pvd").read_text()
+    assert snapshots == 6 and pvd.count("<DataSet ") == snapshots
+
+
 def test_post_process_plots_with_this_interpreter_or_warns(tmp_path, tiny_deposit, capfd):
     sim = rubble.Simulation(rubble.load_scene(tiny_deposit))
     sim.record(tmp_path / "run", end_time=0.01)
