@@ -254,6 +254,9 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   }
   const auto total_steps = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(wanted_steps - 1e-9)));
   std::optional<RunFile> file;
+  // A new run file opens with a snapshot of the state it starts from, written once the VTK
+  // series (if any) exists too: a new run, or a resumed one whose run file had to be replaced.
+  bool first_snapshot_pending = control.resume == nullptr;
   std::int64_t last_checkpoint_step = -1;
   // Every write of the output goes through `output`: a failure (disk full, I/O error) stops the
   // run with an OutputError that says where it stopped and what is left to resume from.
@@ -319,9 +322,9 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       output([&] {
         file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names, parameters));
       });
-      output([&] { file->write_snapshot(state, workspace.contacts); });
+      first_snapshot_pending = true;
       progress.series_rows = 0;
-      progress.snapshots = file->snapshot_count();
+      progress.snapshots = 0;
       if (control.warnings) {
         *control.warnings << fmt::format(
             "rubble run: warning: {} cannot be reopened ({}){}; the series goes on in a new {} from step {} (its "
@@ -404,7 +407,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const auto start = Clock::now();
   auto last_progress = start;
   auto last_checkpoint_time = start;
-  if (control.resume == nullptr) write_snapshot(false);
+  if (first_snapshot_pending) write_snapshot(false);
 
   State before;  // the state at the start of the step, to locate a failure
   std::optional<double> potential;  // the grains' potential energy after the last step, J

@@ -97,6 +97,18 @@ RunRecord read_record(const fs::path& file) {
   }
   return record;
 }
+/// The number of data sets listed by a ParaView collection (.pvd), and their times.
+std::vector<double> pvd_times(const fs::path& pvd) {
+  std::ifstream in(pvd);
+  std::vector<double> times;
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto at = line.find("timestep=\"");
+    if (at != std::string::npos) times.push_back(std::stod(line.substr(at + 10)));
+  }
+  return times;
+}
+
 void expect_same_record(const RunRecord& a, const RunRecord& b) {
   EXPECT_EQ(a.series.step, b.series.step);
   EXPECT_EQ(a.series.time, b.series.time);
@@ -194,18 +206,6 @@ TEST(Restart, StopFlagWritesACheckpointAndResumesIdentically) {
   EXPECT_EQ(RunReader::open(finished.run_file).status(), "end_time");
 }
 
-/// The number of data sets listed by a ParaView collection (.pvd), and their times.
-std::vector<double> pvd_times(const fs::path& pvd) {
-  std::ifstream in(pvd);
-  std::vector<double> times;
-  std::string line;
-  while (std::getline(in, line)) {
-    const auto at = line.find("timestep=\"");
-    if (at != std::string::npos) times.push_back(std::stod(line.substr(at + 10)));
-  }
-  return times;
-}
-
 // [output] vtk = true: the ParaView series is written during the run, one entry per snapshot of
 // the run file (17 here: step 0 and every 25 steps to 400), also across a stop and a resume (the
 // stop's own snapshot is replaced by the resumed run's next ones).
@@ -266,7 +266,8 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
   const RunRecord reference_record = read_record(reference.run_file);
   for (const std::string damage : {"missing", "garbage"}) {
     SCOPED_TRACE(damage);
-    const Scene scene = scene_in("no_file_" + damage);
+    Scene scene = scene_in("no_file_" + damage);
+    scene.run.output.write_vtk = true;
     RunControl control = control_for();
     control.checkpoint_every_steps = 100;
     control.checkpoints_kept = 10;
@@ -275,6 +276,7 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
     const fs::path checkpoint_file = checkpoint_folder(directory) / "step-000000000200.ckpt";
     const Checkpoint checkpoint = read_checkpoint(checkpoint_file);
     fs::remove(directory / "run.h5");
+    fs::remove_all(directory / "vtk");  // lost with it: the series is rewritten from the checkpoint
     if (damage == "garbage") std::ofstream(directory / "run.h5") << "not an HDF5 file at all";
     std::ostringstream warnings;
     RunControl resume = control;
@@ -291,6 +293,11 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
     ASSERT_FALSE(record.snapshot_steps.empty());
     EXPECT_EQ(record.snapshot_steps.front(), 200);
     EXPECT_EQ(record.snapshot_hashes.back(), reference_record.snapshot_hashes.back());
+    // The ParaView series starts again with the new run file: its entries are the file's snapshots.
+    const std::vector<double> times = pvd_times(directory / "vtk" / "spheres.pvd");
+    ASSERT_EQ(times.size(), record.snapshot_steps.size());
+    EXPECT_NEAR(times.front(), 0.02, 1e-12);
+    EXPECT_TRUE(fs::exists(directory / "vtk" / "spheres_000000.vtp"));
   }
 }
 
