@@ -1,6 +1,7 @@
 // `rubble post RUN.h5 [-o DIR] [--vtk] [--every N] [--no-plots]`: metrics of every snapshot (CSV and
 // HDF5), the per-step series as CSV, ParaView files on request, PNG plots.
-// `rubble post --study DIR_OR_RUN... [-o DIR] [--stable-after S]`: the study's comparison plots.
+// `rubble post --study DIR_OR_RUN... [-o DIR] [--stable-after S] [--include-unfinished]`: the
+// study's comparison plots. Plots that cannot be drawn (no matplotlib) are a warning, not an error.
 // Every file written is listed in docs/postprocessing.md.
 #include <iostream>
 #include <memory>
@@ -19,6 +20,9 @@ struct PostArguments {
   std::string output_directory;
   bool vtk = false;
   bool no_plots = false;
+  bool include_unfinished = false;
+  std::string python;
+  std::string plots_script;
   bool quiet = false;
   int every = 1;
   int bins = 20;
@@ -58,6 +62,13 @@ void settings_from_scene(const RunReader& reader, PostOptions& options, std::ost
   }
 }
 
+PlotOptions plot_options(const PostArguments& args) {
+  PlotOptions plot;
+  plot.python = args.python;
+  plot.script = args.plots_script;
+  return plot;
+}
+
 int post_command(const PostArguments& args) {
   std::ostream* log = args.quiet ? nullptr : &std::cout;
   try {
@@ -66,7 +77,10 @@ int post_command(const PostArguments& args) {
       options.output_directory = args.output_directory.empty() ? "rubble-study" : args.output_directory;
       options.stable_after = args.stable_after;
       options.plots = !args.no_plots;
+      options.plot = plot_options(args);
+      options.include_unfinished = args.include_unfinished;
       options.log = log;
+      options.warnings = &std::cerr;
       std::vector<std::filesystem::path> inputs(args.study.begin(), args.study.end());
       const auto written = post_process_study(inputs, options);
       if (log != nullptr) {
@@ -90,8 +104,10 @@ int post_command(const PostArguments& args) {
     options.every = args.every;
     options.write_vtk = args.vtk;
     options.plots = !args.no_plots;
+    options.plot = plot_options(args);
     options.histogram_bins = args.bins;
     options.log = log;
+    options.warnings = &std::cerr;
     post_process_run(run, options);
   } catch (const PostOutputError& e) {
     std::cerr << "rubble post: output failure: " << e.what() << "\n";
@@ -129,6 +145,17 @@ void register_post_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   post->add_flag("--no-plots", args->no_plots, "Do not draw the PNGs");
+  post->add_option("--python", args->python,
+                   "Python interpreter with matplotlib that draws the PNGs (default: $RUBBLE_PYTHON, else python3 on "
+                   "PATH, else /usr/bin/python3, the first that has matplotlib)")
+      ->type_name("PYTHON");
+  post->add_option("--plots-script", args->plots_script,
+                   "The plotting script (default: $RUBBLE_PLOTS_SCRIPT, else plots.py beside rubble or in "
+                   "../share/rubble/)")
+      ->type_name("FILE");
+  post->add_flag("--include-unfinished", args->include_unfinished,
+                 "With --study: also average and plot runs that did not end at rest (interrupted, killed, cut by the "
+                 "end time); they are marked in study.csv and the plots");
   post->add_flag("-q,--quiet", args->quiet, "Do not list progress and files");
   post->callback([args] {
     if (args->run_file.empty() && args->study.empty()) {

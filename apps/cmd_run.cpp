@@ -204,6 +204,7 @@ int run_command(const RunArguments& args) {
       const int signal_number = stop_signal.load();
       std::cout << "rubble run: stopped by " << signal_name(signal_number) << " at step " << summary.final_step
                 << " (t = " << summary.simulated_time << " s); checkpoint written: " << summary.last_checkpoint.string()
+                << "; the state at the stop is the last snapshot of " << summary.run_file.string()
                 << "\n  go on with: rubble run --resume " << scene.run.output.directory << "\n";
       return 128 + signal_number;
     }

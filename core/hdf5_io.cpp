@@ -32,24 +32,37 @@ hsize_t element_count(std::span<const hsize_t> dims) {
   return std::accumulate(dims.begin(), dims.end(), hsize_t{1}, [](hsize_t a, hsize_t b) { return a * b; });
 }
 
-/// Rows per chunk of a checksummed dataset: a chunk stays under HDF5's 4 GiB limit for any row size
+/// Rows per chunk of a filtered dataset: a chunk stays under HDF5's 4 GiB limit for any row size
 /// used here (at most a few doubles a row) and a damaged chunk names a small part of the file.
-constexpr hsize_t checksum_chunk_rows = 65536;
+constexpr hsize_t filtered_chunk_rows = 65536;
+
+/// Adds the filters of `storage` to chunked dataset-creation properties, in the documented order.
+void add_filters(hid_t properties, const Storage& storage, const std::filesystem::path& file, const std::string& name) {
+  if (storage.gzip_level > 0) {
+    if (storage.shuffle) check(H5Pset_shuffle(properties), file, "shuffle filter of '" + name + "'");
+    check(H5Pset_deflate(properties, static_cast<unsigned>(storage.gzip_level)), file, "compression of '" + name + "'");
+  }
+  if (storage.fletcher32) check(H5Pset_fletcher32(properties), file, "checksum of '" + name + "'");
+}
+
+bool filtered(const Storage& storage) { return storage.fletcher32 || storage.gzip_level > 0; }
 
 void write_array(hid_t parent, const std::string& name, hid_t file_type, hid_t memory_type, const void* data,
                  std::size_t size, std::span<const hsize_t> dims, const std::filesystem::path& file,
-                 Checksum checksum) {
+                 Storage storage) {
   if (element_count(dims) != size) {
     throw std::invalid_argument(where(file, "dataset '" + name + "': data size does not match its shape"));
   }
-  Handle space = own(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, file,
-                     "dataspace of '" + name + "'");
+  // No dimensions: a scalar dataset (one value).
+  Handle space = own(dims.empty() ? H5Screate(H5S_SCALAR)
+                                  : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
+                     H5Sclose, file, "dataspace of '" + name + "'");
   Handle properties = own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, "dataset properties");
-  if (checksum == Checksum::fletcher32 && size > 0) {
+  if (filtered(storage) && size > 0 && !dims.empty()) {
     std::vector<hsize_t> chunk(dims.begin(), dims.end());
-    chunk[0] = std::min(chunk[0], checksum_chunk_rows);
+    chunk[0] = std::min(chunk[0], filtered_chunk_rows);
     check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), file, "chunking of '" + name + "'");
-    check(H5Pset_fletcher32(properties.get()), file, "checksum of '" + name + "'");
+    add_filters(properties.get(), storage, file, name);
   }
   Handle dataset = own(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
                        H5Dclose, file, "cannot create dataset '" + name + "'");
@@ -97,9 +110,14 @@ Handle own(hid_t id, Handle::Closer closer, const std::filesystem::path& file, s
   return Handle(id, closer);
 }
 
-Handle create_file(const std::filesystem::path& path) {
+Handle create_file(const std::filesystem::path& path, ChunkIndex index) {
+  // Not HDF5 1.10's newer format (H5Pset_libver_bounds), whose array chunk indexes are smaller
+  // still: its files carry a "being written" flag that outlives a killed writer, after which
+  // neither h5py nor a resumed run opens the file until `h5clear -s`.
+  Handle creation = own(H5Pcreate(H5P_FILE_CREATE), H5Pclose, path, "file creation properties");
+  if (index == ChunkIndex::small) check(H5Pset_istore_k(creation.get(), 1), path, "chunk index node size");
   hid_t id = -1;
-  H5E_BEGIN_TRY { id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT); }
+  H5E_BEGIN_TRY { id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, creation.get(), H5P_DEFAULT); }
   H5E_END_TRY;
   return own(id, H5Fclose, path, "cannot create HDF5 file");
 }
@@ -161,20 +179,20 @@ std::vector<std::string> link_names(hid_t group, const std::filesystem::path& fi
 }
 
 void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
-  write_array(parent, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data.data(), data.size(), dims, file, checksum);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+  write_array(parent, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data.data(), data.size(), dims, file, storage);
 }
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
-  write_array(parent, name, H5T_STD_I64LE, H5T_NATIVE_INT64, data.data(), data.size(), dims, file, checksum);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+  write_array(parent, name, H5T_STD_I64LE, H5T_NATIVE_INT64, data.data(), data.size(), dims, file, storage);
 }
 void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
-  write_array(parent, name, H5T_STD_I32LE, H5T_NATIVE_INT32, data.data(), data.size(), dims, file, checksum);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+  write_array(parent, name, H5T_STD_I32LE, H5T_NATIVE_INT32, data.data(), data.size(), dims, file, storage);
 }
 void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum) {
-  write_array(parent, name, H5T_STD_I8LE, H5T_NATIVE_INT8, data.data(), data.size(), dims, file, checksum);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+  write_array(parent, name, H5T_STD_I8LE, H5T_NATIVE_INT8, data.data(), data.size(), dims, file, storage);
 }
 
 void write_string(hid_t parent, const std::string& name, std::string_view text, const std::filesystem::path& file) {
@@ -237,6 +255,25 @@ void write_attribute(hid_t object, const std::string& name, std::span<const std:
   if (!pointers.empty()) {
     check(H5Awrite(attribute.get(), type.get(), pointers.data()), file, "cannot write attribute '" + name + "'");
   }
+}
+
+void write_attribute_on(hid_t parent, const std::string& object_name, const std::string& name, std::string_view value,
+                        const std::filesystem::path& file) {
+  Handle type = utf8_string_type(file);
+  Handle space = own(H5Screate(H5S_SCALAR), H5Sclose, file, "scalar dataspace");
+  Handle attribute = own(H5Acreate_by_name(parent, object_name.c_str(), name.c_str(), type.get(), space.get(), H5P_DEFAULT,
+                                           H5P_DEFAULT, H5P_DEFAULT),
+                         H5Aclose, file, "cannot create attribute '" + name + "' of '" + object_name + "'");
+  const std::string owned(value);
+  const char* pointer = owned.c_str();
+  check(H5Awrite(attribute.get(), type.get(), &pointer), file, "cannot write attribute '" + name + "'");
+}
+
+void replace_attribute(hid_t object, const std::string& name, std::string_view value, const std::filesystem::path& file) {
+  if (H5Aexists(object, name.c_str()) > 0) {
+    check(H5Adelete(object, name.c_str()), file, "cannot replace attribute '" + name + "'");
+  }
+  write_attribute(object, name, value, file);
 }
 
 Array<double> read_doubles(hid_t parent, const std::string& name, const std::filesystem::path& file) {
@@ -317,7 +354,7 @@ std::string read_string_attribute(hid_t object, const std::string& name, const s
 }
 
 ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t type, hsize_t chunk_rows,
-                                   const std::filesystem::path& file, Checksum checksum)
+                                   const std::filesystem::path& file, Storage storage)
     : type_(type), name_(name) {
   const hsize_t dims[1] = {0};
   const hsize_t max_dims[1] = {H5S_UNLIMITED};
@@ -325,7 +362,7 @@ ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t 
   Handle properties = own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, "dataset properties");
   const hsize_t chunk[1] = {chunk_rows};
   check(H5Pset_chunk(properties.get(), 1, chunk), file, "chunking of '" + name + "'");
-  if (checksum == Checksum::fletcher32) check(H5Pset_fletcher32(properties.get()), file, "checksum of '" + name + "'");
+  add_filters(properties.get(), storage, file, name);
   dataset_ = own(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
                  H5Dclose, file, "cannot create dataset '" + name + "'");
 }

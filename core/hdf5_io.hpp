@@ -84,8 +84,19 @@ void check(herr_t status, const std::filesystem::path& file, std::string_view wh
 /// Wraps an id: throws like check() if it is negative, otherwise returns an owning handle.
 Handle own(hid_t id, Handle::Closer closer, const std::filesystem::path& file, std::string_view what);
 
+/// The B-tree that indexes a file's chunked datasets.
+enum class ChunkIndex {
+  /// HDF5's default: nodes of 64 entries, 2 kB or more for every chunked dataset however few its
+  /// chunks.
+  standard,
+  /// Nodes of 2 entries (H5Pset_istore_k 1, the least): for files of many small datasets of one
+  /// or a few chunks each (a run file's snapshots), where the default nodes were a third of the
+  /// file. Readable by every HDF5 since 1.8.
+  small,
+};
+
 /// Creates (truncates) an HDF5 file; throws with the path on failure. Errors are not printed.
-Handle create_file(const std::filesystem::path& path);
+Handle create_file(const std::filesystem::path& path, ChunkIndex index = ChunkIndex::standard);
 /// Opens an HDF5 file read-only; throws with the path on failure.
 Handle open_file(const std::filesystem::path& path);
 
@@ -98,24 +109,36 @@ bool exists(hid_t parent, const std::string& name);
 /// Names of the links in a group, in their creation order if tracked, else by name.
 std::vector<std::string> link_names(hid_t group, const std::filesystem::path& file);
 
-/// Whether a dataset carries a checksum. With fletcher32 the data are stored in chunks of at
-/// most 65 536 rows, each with HDF5's Fletcher-32 checksum, which every read verifies (a damaged
-/// chunk fails to read with "data error detected by fletcher32 checksum" instead of returning
-/// wrong numbers); empty datasets have nothing to check and stay contiguous.
-enum class Checksum { none, fletcher32 };
+/// How a numeric dataset is stored. Any filter makes it chunked (at most 65 536 rows a chunk, so
+/// that a chunk stays under HDF5's 4 GiB limit and a damaged chunk names a small part of the file);
+/// empty datasets have nothing to filter and stay contiguous. Filters run in the order shuffle,
+/// deflate, checksum on writing, so the checksum covers the bytes on disk and is verified first on
+/// reading.
+struct Storage {
+  /// HDF5's Fletcher-32 checksum on every chunk, verified by every read: a damaged chunk fails to
+  /// read with "data error detected by fletcher32 checksum" instead of returning wrong numbers.
+  bool fletcher32 = false;
+  /// Deflate (gzip) level, 1 (fast) to 9 (small); 0: no compression. Read by every HDF5 reader
+  /// (h5py, h5dump, ParaView), as gzip is built into the HDF5 library.
+  int gzip_level = 0;
+  /// Byte shuffle before deflate (groups the bytes of equal significance: doubles of similar
+  /// magnitude then compress much better). Only with gzip_level > 0.
+  bool shuffle = false;
+};
 
-/// Writes a dataset of shape dims (row-major) from `data` (size = product of dims; may be 0).
+/// Writes a dataset of shape dims (row-major) from `data` (size = product of dims; may be 0; no dims: a
+/// scalar).
 void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
+                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
 /// Same for 64-bit integers.
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
 /// Same for 32-bit integers.
 void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
-                  std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
 /// Same for 8-bit integers.
 void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
-                 std::span<const hsize_t> dims, const std::filesystem::path& file, Checksum checksum = Checksum::none);
+                 std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
 /// A scalar variable-length UTF-8 string dataset.
 void write_string(hid_t parent, const std::string& name, std::string_view text, const std::filesystem::path& file);
 /// A 1-D dataset of variable-length UTF-8 strings.
@@ -131,6 +154,13 @@ void write_attribute(hid_t object, const std::string& name, std::string_view val
 /// 1-D attribute of variable-length UTF-8 strings.
 void write_attribute(hid_t object, const std::string& name, std::span<const std::string> values,
                      const std::filesystem::path& file);
+/// Variable-length UTF-8 string attribute on the object `object_name` (a path relative to
+/// `parent`), e.g. the units of a dataset just written by name.
+void write_attribute_on(hid_t parent, const std::string& object_name, const std::string& name, std::string_view value,
+                        const std::filesystem::path& file);
+/// Replaces a scalar string attribute (creates it if missing): for values that change while the
+/// file is written, such as a run's status.
+void replace_attribute(hid_t object, const std::string& name, std::string_view value, const std::filesystem::path& file);
 
 /// A dataset read back: its shape and its values converted to the requested type.
 template <typename T>
@@ -158,9 +188,9 @@ std::string read_string_attribute(hid_t object, const std::string& name, const s
 class ExtendableColumn {
  public:
   /// Creates `name` in `parent` with element type `type` (a predefined native type such as
-  /// H5T_NATIVE_DOUBLE), chunks of `chunk_rows` rows, each with a Fletcher-32 checksum if asked.
+  /// H5T_NATIVE_DOUBLE), chunks of `chunk_rows` rows, stored with `storage`'s filters.
   ExtendableColumn(hid_t parent, const std::string& name, hid_t type, hsize_t chunk_rows,
-                   const std::filesystem::path& file, Checksum checksum = Checksum::none);
+                   const std::filesystem::path& file, Storage storage = {});
   /// Appends `count` elements of the column's type read from `data`.
   void append(const void* data, std::size_t count, const std::filesystem::path& file);
   /// Opens the existing column `name` of `parent` (made by the constructor above) and cuts it to

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <ostream>
 #include <stdexcept>
 
@@ -68,14 +69,65 @@ std::string shell_quote(const std::string& text) {
   return quoted + "'";
 }
 
-void run_plots(const std::string& mode, const fs::path& directory, std::ostream* log) {
-  const char* python_override = std::getenv("RUBBLE_PYTHON");
-  const std::string python = python_override != nullptr ? python_override : "/usr/bin/python3";
-  const std::string command =
-      shell_quote(python) + " " + shell_quote(plots_script().string()) + " " + mode + " " + shell_quote(directory.string());
+/// True if `python` runs and imports matplotlib (its output is discarded).
+bool has_matplotlib(const std::string& python) {
+  const std::string command = shell_quote(python) + " -c 'import matplotlib' > /dev/null 2>&1";
+  return std::system(command.c_str()) == 0;
+}
+
+/// The interpreter that draws the plots (PlotOptions::python), or nullopt with the reason.
+std::optional<std::string> plotting_python(const PlotOptions& options, std::string& reason) {
+  std::vector<std::string> candidates;
+  if (!options.python.empty()) {
+    candidates = {options.python};
+  } else if (const char* requested = std::getenv("RUBBLE_PYTHON"); requested != nullptr && *requested != '\0') {
+    candidates = {requested};
+  } else {
+    // `python3` on PATH first (a virtual environment, a conda or pyenv interpreter); the system's
+    // own next, which has matplotlib on Debian once python3-matplotlib is installed, when the one
+    // on PATH has not (scripts/install-deps.sh installs it).
+    candidates = {"python3", "/usr/bin/python3"};
+  }
+  for (const std::string& python : candidates) {
+    if (has_matplotlib(python)) return python;
+  }
+  reason = "no Python with matplotlib (tried";
+  for (const std::string& python : candidates) reason += " " + python;
+  reason += "): install matplotlib (Debian: apt-get install python3-matplotlib) or give one with --python";
+  return std::nullopt;
+}
+
+/// Draws the PNGs of `mode` ("run" or "study") with plots.py; returns false, with a warning, when
+/// it cannot (the CSV files are there all the same: plots are a convenience, not the result).
+bool run_plots(const std::string& mode, const std::string& arguments, const fs::path& directory,
+               const PlotOptions& options, std::ostream* log, std::ostream* warnings) {
+  const auto warn = [&](const std::string& what) {
+    if (warnings != nullptr) {
+      *warnings << "rubble post: warning: plots not drawn: " << what << " (the CSV and HDF5 files are written)\n"
+                        << std::flush;
+    }
+    return false;
+  };
+  const fs::path script = options.script.empty() ? plots_script() : options.script;
+  if (!fs::is_regular_file(script)) {
+    return warn(script.string() + ": no such plotting script (set RUBBLE_PLOTS_SCRIPT or --plots-script)");
+  }
+  std::string reason;
+  const std::optional<std::string> python = plotting_python(options, reason);
+  if (!python) return warn(reason);
+  const std::string command = shell_quote(*python) + " " + shell_quote(script.string()) + " " + mode + " " +
+                              shell_quote(directory.string()) + arguments;
   if (log != nullptr) *log << "rubble post: plotting: " << command << "\n" << std::flush;
   const int status = std::system(command.c_str());
-  if (status != 0) throw std::runtime_error(directory.string() + ": the plotting script failed: " + command);
+  if (status != 0) return warn("the plotting script failed: " + command);
+  return true;
+}
+
+/// The PNGs that `plots.py run` draws for a scene of this kind (docs/postprocessing.md).
+std::vector<std::string> run_plot_files(SceneKind kind) {
+  if (kind == SceneKind::deposit) return {"kinetic_energy.png", "coordination.png", "impulse_distribution.png"};
+  return {"kinetic_energy.png", "coordination.png", "packing_fraction.png", "aggregate_diameter.png",
+          "impulse_distribution.png"};
 }
 
 /// The snapshot indices used: every `every`-th from 0, and the last one.
@@ -159,11 +211,25 @@ void check_metrics(const fs::path& run_file, std::size_t index, const std::vecto
 
 fs::path plots_script() {
   const char* override_path = std::getenv("RUBBLE_PLOTS_SCRIPT");
-  return override_path != nullptr ? fs::path(override_path) : fs::path(RUBBLE_PLOTS_SCRIPT);
+  if (override_path != nullptr && *override_path != '\0') return fs::path(override_path);
+  std::error_code error;
+  const fs::path program = fs::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    for (const fs::path& candidate : {program.parent_path() / "plots.py", program.parent_path() / ".." / "share" / "rubble" / "plots.py"}) {
+      if (fs::is_regular_file(candidate, error)) return candidate.lexically_normal();
+    }
+  }
+  return fs::path(RUBBLE_PLOTS_SCRIPT);
 }
 
 std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptions& options) {
   const RunReader reader = RunReader::open(run_file);
+  if (reader.live() && options.warnings != nullptr) {
+    *options.warnings << "rubble post: note: " << run_file.string()
+                      << " is being written by a running `rubble run`: reading a run in progress, as of its last "
+                         "checkpoint (status "
+                      << reader.status() << ")\n";
+  }
   const Model& model = reader.model();
   const fs::path out = options.output_directory;
   std::error_code error;
@@ -197,7 +263,7 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   // Metrics of every chosen snapshot, the impulse distribution of the last one, VTK on request.
   const double h = options.time_step > 0.0 ? options.time_step : reader.time_step();
   std::unique_ptr<VtkSeries> vtk;
-  if (options.write_vtk) vtk = std::make_unique<VtkSeries>(out / "vtk", model, VtkSeriesOptions{h, 0.0});
+  if (options.write_vtk) vtk = std::make_unique<VtkSeries>(out / "vtk", model, VtkSeriesOptions{h, 0.0, {}});
   std::vector<std::vector<double>> rows;
   ImpulseHistogram histogram;
   const std::vector<std::size_t> indices = chosen_snapshots(reader.snapshot_count(), options.every);
@@ -240,11 +306,18 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
     for (const fs::path& collection : vtk->collections()) written.push_back(collection);
   }
   if (options.plots) {
-    run_plots("run", out, options.log);
-    for (const char* png : {"kinetic_energy.png", "coordination.png", "packing_fraction.png", "aggregate_diameter.png",
-                            "impulse_distribution.png"}) {
-      if (!fs::exists(out / png)) throw std::runtime_error((out / png).string() + ": the plotting script did not write it");
-      written.push_back(out / png);
+    const SceneKind kind = options.scene_kind.value_or(
+        options.potential.kind == PotentialSettings::Kind::self ? SceneKind::aggregate : SceneKind::deposit);
+    const std::string arguments = kind == SceneKind::aggregate ? " --scene aggregate" : " --scene deposit";
+    if (run_plots("run", arguments, out, options.plot, options.log, options.warnings)) {
+      for (const std::string& png : run_plot_files(kind)) {
+        if (fs::exists(out / png)) {
+          written.push_back(out / png);
+        } else if (options.warnings != nullptr) {
+          *options.warnings << "rubble post: warning: " << (out / png).string() << ": the plotting script did not write it\n";
+        }
+      }
+      if (fs::exists(out / "conservation.png")) written.push_back(out / "conservation.png");
     }
   }
   if (options.log != nullptr) {
@@ -274,10 +347,11 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   if (error) throw PostOutputError(out.string() + ": cannot create the folder: " + error.message());
 
   const fs::path path = out / "study.csv";
-  CsvWriter csv(path, {"run", "shape", "grains", "friction", "snapshots_used", "window_start", "Z_max",
+  CsvWriter csv(path, {"run", "status", "included", "shape", "grains", "friction", "snapshots_used", "window_start", "Z_max",
                        "Z_without_rattlers", "D_max", "mean_diameter", "equivalent_diameter", "D_max_over_mean_d",
                        "D_max_over_d_star", "packing_fraction", "inner_packing_fraction", "peak_mean_kinetic_energy"});
   int used = 0;
+  std::vector<std::string> left_out;  // runs that did not end at rest, with their status
   for (const fs::path& run : runs) {
     std::unique_ptr<RunReader> reader;
     try {
@@ -288,6 +362,22 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       continue;
     }
     const Model& model = reader->model();
+    // A run stopped mid-collapse (interrupted, killed, failed, or cut by its end time) is not a
+    // rubble pile at rest: its "stabilised" averages would sit beside finished runs' as if
+    // comparable. Listed with its status; averaged and plotted only when asked.
+    const std::string status = reader->status();
+    const bool finished = status == "at_rest";
+    if (!finished) {
+      left_out.push_back(run.string() + " (" + status + ")");
+      if (options.log != nullptr) {
+        *options.log << "rubble post: study: " << run.string() << " did not end at rest (status " << status << "): "
+                     << (options.include_unfinished ? "included (--include-unfinished), marked in study.csv and the plots"
+                                                    : "listed in study.csv, left out of the plots (--include-unfinished "
+                                                      "to include it)")
+                     << "\n";
+      }
+    }
+    const bool included = finished || options.include_unfinished;
     if (reader->snapshot_count() == 0) {
       if (options.log != nullptr) *options.log << "rubble post: skipping " << run.string() << ": no snapshot\n";
       continue;
@@ -345,26 +435,36 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
     const double d_max = mean([](const AggregateMetrics& m) { return m.aggregate_diameter; });
     const double d_mean = mean([](const AggregateMetrics& m) { return m.mean_diameter; });
     const double d_star = mean([](const AggregateMetrics& m) { return m.equivalent_diameter; });
-    csv.text_row({run.string(), shape, number(grains), number(friction), std::to_string(window.size()),
+    csv.text_row({run.string(), status, included ? "1" : "0", shape, number(grains), number(friction), std::to_string(window.size()),
                   number(window.front()->time), number(mean([](const AggregateMetrics& m) { return m.coordination; })),
                   number(mean([](const AggregateMetrics& m) { return m.coordination_without_rattlers; })), number(d_max),
                   number(d_mean), number(d_star), number(d_mean > 0 ? d_max / d_mean : 0.0),
                   number(d_star > 0 ? d_max / d_star : 0.0),
                   number(mean([](const AggregateMetrics& m) { return m.packing_fraction; })),
                   number(mean([](const AggregateMetrics& m) { return m.inner_packing_fraction; })), number(peak_energy)});
-    ++used;
+    used += included ? 1 : 0;
     if (options.log != nullptr) *options.log << "rubble post: study: " << run.string() << " (" << shape << ", n_s = " << grains << ", mu = " << friction << ")\n";
   }
   csv.close();
-  if (used == 0) throw std::runtime_error("rubble post --study: no run file with snapshots found in the given paths");
+  if (used == 0) {
+    std::string message = "rubble post --study: no run file with snapshots that ended at rest found in the given paths";
+    if (!left_out.empty()) {
+      message += "; " + std::to_string(left_out.size()) + " did not end at rest:";
+      for (const std::string& run : left_out) message += " " + run;
+      message += " (--include-unfinished includes them)";
+    }
+    throw std::runtime_error(message);
+  }
   std::vector<fs::path> written{path};
-  if (options.plots) {
-    run_plots("study", out, options.log);
+  if (options.plots && run_plots("study", "", out, options.plot, options.log, options.warnings)) {
     for (const char* png : {"study_coordination_vs_ns.png", "study_diameter_vs_ns.png", "study_packing_vs_ns.png",
                             "study_coordination_vs_mu.png", "study_diameter_vs_mu.png", "study_packing_vs_mu.png",
                             "study_peak_energy_vs_ns.png"}) {
-      if (!fs::exists(out / png)) throw std::runtime_error((out / png).string() + ": the plotting script did not write it");
-      written.push_back(out / png);
+      if (fs::exists(out / png)) {
+        written.push_back(out / png);
+      } else if (options.warnings != nullptr) {
+        *options.warnings << "rubble post: warning: " << (out / png).string() << ": the plotting script did not write it\n";
+      }
     }
   }
   return written;

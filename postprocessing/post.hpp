@@ -4,6 +4,7 @@
 // in docs/postprocessing.md.
 #include <filesystem>
 #include <iosfwd>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -26,6 +27,20 @@ struct PostOutputError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Which figures fit a run: those of an aggregate (a self-gravitating pile: its diameter D_max,
+/// packing fraction within it, inner sphere) or those of a deposit (grains in walls under a
+/// uniform field: no aggregate diameter or packing fraction).
+enum class SceneKind { aggregate, deposit };
+
+/// How the PNGs are drawn: postprocessing/plots.py run by a Python interpreter with matplotlib.
+struct PlotOptions {
+  /// The interpreter. Empty: $RUBBLE_PYTHON if set, else the first of `python3` (found on PATH)
+  /// and /usr/bin/python3 that imports matplotlib.
+  std::string python;
+  /// The script. Empty: plots_script().
+  std::filesystem::path script;
+};
+
 /// What post_process_run does.
 struct PostOptions {
   std::filesystem::path output_directory;  ///< where everything goes (created if missing)
@@ -34,13 +49,21 @@ struct PostOptions {
   int every = 1;                           ///< use every n-th snapshot (>= 1); the last one always
   bool write_vtk = false;                  ///< also write the ParaView series into OUT/vtk/
   bool plots = true;                       ///< draw the PNGs with plots.py
+  PlotOptions plot{};                      ///< interpreter, script and warnings of the plots
+  /// The figures drawn; unset: an aggregate for self-gravity (potential.kind), else a deposit.
+  std::optional<SceneKind> scene_kind;
   int histogram_bins = 20;                 ///< bins of the normal impulse distribution
   std::ostream* log = nullptr;             ///< progress and the list of files written (nullptr: silent)
+  /// Notes that matter even when quiet (nullptr: nowhere): plots that cannot be drawn (no
+  /// matplotlib, the script failed; the CSV and HDF5 files are written all the same and the
+  /// command succeeds), a run file read while its run goes on.
+  std::ostream* warnings = nullptr;
 };
 
 /// Post-processes one run file; returns the files written. Throws std::runtime_error naming the
-/// file on any read/write problem, or when the plotting script fails, and NonFiniteResult when a
-/// series value, a snapshot's state or a metric is not finite (checked before each is written).
+/// file on any read/write problem, and NonFiniteResult when a series value, a snapshot's state or
+/// a metric is not finite (checked before each is written). Plots that cannot be drawn (no Python
+/// with matplotlib, the script failed) are a warning (PostOptions::warnings), not an error.
 std::vector<std::filesystem::path> post_process_run(const std::filesystem::path& run_file, const PostOptions& options);
 
 /// What post_process_study does.
@@ -50,16 +73,26 @@ struct StudyOptions {
   /// t > 125 min). A run with no snapshot that late uses its last quarter of snapshots instead.
   double stable_after = 7500.0;
   bool plots = true;             ///< draw the PNGs with plots.py
+  PlotOptions plot{};            ///< interpreter, script and warnings of the plots
+  /// Also average and plot runs that did not end at rest (/run@status other than at_rest: stopped
+  /// by a signal or a failure, killed, still running, ended at end_time before rest, or "unknown"
+  /// in a format 1 file). They are always listed in study.csv, with their status.
+  bool include_unfinished = false;
   std::ostream* log = nullptr;   ///< progress (nullptr: silent)
+  std::ostream* warnings = nullptr;  ///< as PostOptions::warnings
 };
 
 /// Gathers run files (each argument a run file, or a folder searched recursively for *.h5 run
 /// files) into study.csv and the comparison plots; returns the files written. Throws
-/// std::runtime_error when no run file is found.
+/// std::runtime_error when no run file is found, or none that ended at rest (unless
+/// include_unfinished).
 std::vector<std::filesystem::path> post_process_study(const std::vector<std::filesystem::path>& inputs,
                                                       const StudyOptions& options);
 
-/// Path of postprocessing/plots.py: $RUBBLE_PLOTS_SCRIPT if set, else the source tree's copy.
+/// Path of plots.py: $RUBBLE_PLOTS_SCRIPT if set; else, beside the running program, `plots.py` or
+/// `../share/rubble/plots.py` (the build tree's BUILD/share/rubble/plots.py for BUILD/apps/rubble,
+/// PREFIX/share/rubble/plots.py for an installed PREFIX/bin/rubble); else the source tree's
+/// postprocessing/plots.py of the build (for test programs).
 std::filesystem::path plots_script();
 
 }  // namespace rubble

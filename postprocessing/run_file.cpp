@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <optional>
 #include <set>
 #include <stdexcept>
 
@@ -21,8 +22,16 @@ using hdf5::Handle;
 namespace fs = std::filesystem;
 
 /// Every numeric dataset of the run file carries HDF5's Fletcher-32 checksum, verified on every
-/// read: a flipped byte is reported by the reader instead of read as a wrong number.
-constexpr hdf5::Checksum checksum = hdf5::Checksum::fletcher32;
+/// read: a flipped byte is reported by the reader instead of read as a wrong number. It is also
+/// shuffled and deflated at level 4: snapshots shrink to about a third (docs/output-format.md,
+/// "Compression"; levels above 4 gain a few percent for twice the time).
+constexpr hdf5::Storage storage{true, 4, true};
+
+/// Writes the `units` attribute of dataset `name` of `parent` (docs/output-format.md: SI, "1" for
+/// dimensionless numbers, counts and indices).
+void units(hid_t parent, const std::string& name, std::string_view value, const fs::path& file) {
+  hdf5::write_attribute_on(parent, name, "units", value, file);
+}
 
 std::string utc_now_iso8601() {
   const std::time_t now = std::time(nullptr);
@@ -41,14 +50,26 @@ std::vector<double> flatten(std::span<const Vec3> vectors) {
   return flat;
 }
 
-void write_vec3s(hid_t parent, const std::string& name, std::span<const Vec3> vectors, const fs::path& file) {
+void write_vec3s(hid_t parent, const std::string& name, std::span<const Vec3> vectors, std::string_view unit,
+                 const fs::path& file) {
   const std::array<hsize_t, 2> dims{vectors.size(), 3};
-  hdf5::write_doubles(parent, name, flatten(vectors), dims, file, checksum);
+  hdf5::write_doubles(parent, name, flatten(vectors), dims, file, storage);
+  units(parent, name, unit, file);
 }
 
-void write_column(hid_t parent, const std::string& name, std::span<const double> values, const fs::path& file) {
+void write_column(hid_t parent, const std::string& name, std::span<const double> values, std::string_view unit,
+                  const fs::path& file) {
   const std::array<hsize_t, 1> dims{values.size()};
-  hdf5::write_doubles(parent, name, values, dims, file, checksum);
+  hdf5::write_doubles(parent, name, values, dims, file, storage);
+  units(parent, name, unit, file);
+}
+
+/// The integer datasets of the model and the snapshots: ids, indices, kinds, counts (units "1").
+template <typename Write, typename Values>
+void write_integers(Write write, hid_t parent, const std::string& name, const Values& values,
+                    std::span<const hsize_t> dims, const fs::path& file) {
+  write(parent, name, values, dims, file, storage);
+  units(parent, name, "1", file);
 }
 
 void write_model(hid_t file_id, const Model& model, const fs::path& file) {
@@ -70,14 +91,14 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
     if (model.shape_kind[i] == ShapeKind::sphere) radius[i] = model.sphere_radius(i);
   }
   const std::array<hsize_t, 1> dims_n{n};
-  hdf5::write_int8s(g, "body_shape_kind", kind, dims_n, file, checksum);
-  hdf5::write_int32s(g, "body_shape_index", shape_index, dims_n, file, checksum);
-  hdf5::write_int32s(g, "material", material, dims_n, file, checksum);
-  write_column(g, "mass", model.mass, file);
-  write_column(g, "volume", model.volume, file);
-  write_column(g, "bounding_radius", model.bounding_radius, file);
-  write_column(g, "radius", radius, file);
-  write_vec3s(g, "principal_inertia", model.principal_inertia, file);
+  write_integers(hdf5::write_int8s, g, "body_shape_kind", kind, dims_n, file);
+  write_integers(hdf5::write_int32s, g, "body_shape_index", shape_index, dims_n, file);
+  write_integers(hdf5::write_int32s, g, "material", material, dims_n, file);
+  write_column(g, "mass", model.mass, "kg", file);
+  write_column(g, "volume", model.volume, "m^3", file);
+  write_column(g, "bounding_radius", model.bounding_radius, "m", file);
+  write_column(g, "radius", radius, "m", file);
+  write_vec3s(g, "principal_inertia", model.principal_inertia, "kg m^2", file);
 
   // Polyhedra as flat arrays (CSR-like): polyhedron p owns vertices
   // [vertex_offset[p], vertex_offset[p+1]) and faces [polyhedron_face_offset[p], ...[p+1]);
@@ -97,26 +118,26 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
       }
       polyhedron_face_offset.push_back(static_cast<std::int64_t>(face_offset.size() - 1));
     }
-    write_vec3s(polyhedra.get(), "vertices", vertices, file);
+    write_vec3s(polyhedra.get(), "vertices", vertices, "m", file);
     const std::array<hsize_t, 1> dims_vo{vertex_offset.size()}, dims_fv{face_vertices.size()},
         dims_fo{face_offset.size()}, dims_pfo{polyhedron_face_offset.size()};
-    hdf5::write_int64s(polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file, checksum);
-    hdf5::write_int32s(polyhedra.get(), "face_vertices", face_vertices, dims_fv, file, checksum);
-    hdf5::write_int64s(polyhedra.get(), "face_offset", face_offset, dims_fo, file, checksum);
-    hdf5::write_int64s(polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file, checksum);
-    write_vec3s(polyhedra.get(), "face_normal", face_normals, file);
+    write_integers(hdf5::write_int64s, polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file);
+    write_integers(hdf5::write_int32s, polyhedra.get(), "face_vertices", face_vertices, dims_fv, file);
+    write_integers(hdf5::write_int64s, polyhedra.get(), "face_offset", face_offset, dims_fo, file);
+    write_integers(hdf5::write_int64s, polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file);
+    write_vec3s(polyhedra.get(), "face_normal", face_normals, "1", file);
   }
   {
     Handle planes = hdf5::create_group(g, "planes", file);
     std::vector<Vec3> normals;
     for (const Plane& plane : model.planes) normals.push_back(plane.normal);
-    write_vec3s(planes.get(), "normal", normals, file);
+    write_vec3s(planes.get(), "normal", normals, "1", file);
   }
   {
     Handle boxes = hdf5::create_group(g, "boxes", file);
     std::vector<Vec3> half_extents;
     for (const Box& box : model.boxes) half_extents.push_back(box.half_extents);
-    write_vec3s(boxes.get(), "half_extents", half_extents, file);
+    write_vec3s(boxes.get(), "half_extents", half_extents, "m", file);
   }
   {
     Handle materials = hdf5::create_group(g, "materials", file);
@@ -127,7 +148,7 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
       density.push_back(m.density);
     }
     hdf5::write_strings(materials.get(), "name", names, file);
-    write_column(materials.get(), "density", density, file);
+    write_column(materials.get(), "density", density, "kg/m^3", file);
   }
   {
     Handle laws = hdf5::create_group(g, "contact_laws", file);
@@ -141,18 +162,59 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
       }
     }
     const std::array<hsize_t, 2> dims{m, m};
-    hdf5::write_doubles(laws.get(), "friction", friction, dims, file, checksum);
-    hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file, checksum);
+    hdf5::write_doubles(laws.get(), "friction", friction, dims, file, storage);
+    units(laws.get(), "friction", "1", file);
+    hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file, storage);
+    units(laws.get(), "restitution", "1", file);
   }
 }
 
-}  // namespace
+/// A series column: its name, HDF5 type and units.
+struct ColumnSpec {
+  const char* name;
+  hid_t type;
+  const char* units;
+};
 
-/// The open file, its series columns and the rows not yet written.
+/// The series columns of SeriesRow's first fields, in this order (types are HDF5's native ones,
+/// which are macros, not constants: the table is built when used).
+std::array<ColumnSpec, 8> basic_columns() {
+  return {{{"step", H5T_NATIVE_INT64, "1"},
+           {"time", H5T_NATIVE_DOUBLE, "s"},
+           {"kinetic_energy", H5T_NATIVE_DOUBLE, "J"},
+           {"contacts", H5T_NATIVE_INT64, "1"},
+           {"active_contacts", H5T_NATIVE_INT64, "1"},
+           {"iterations", H5T_NATIVE_INT, "1"},
+           {"residual", H5T_NATIVE_DOUBLE, "1"},
+           {"wall_seconds", H5T_NATIVE_DOUBLE, "s"}}};
+}
+
 /// The conservation monitor's series columns (double, one value a step), in this order.
 constexpr std::array<const char*, 8> conservation_columns{
     "potential_energy",   "total_energy",       "linear_momentum_x",  "linear_momentum_y",
     "linear_momentum_z",  "angular_momentum_x", "angular_momentum_y", "angular_momentum_z"};
+/// Their units.
+constexpr std::array<const char*, 8> conservation_units{"J",      "J",        "kg m/s",   "kg m/s",
+                                                       "kg m/s", "kg m^2/s", "kg m^2/s", "kg m^2/s"};
+
+/// Rows per chunk of the series and of the snapshot index.
+constexpr hsize_t series_chunk_rows = 1024;
+
+}  // namespace
+
+std::string_view run_status_name(RunStatus status) {
+  switch (status) {
+    case RunStatus::running: return "running";
+    case RunStatus::at_rest: return "at_rest";
+    case RunStatus::end_time: return "end_time";
+    case RunStatus::interrupted: return "interrupted";
+    case RunStatus::numerical_failure: return "numerical_failure";
+    case RunStatus::closed: return "closed";
+  }
+  return "running";
+}
+
+/// The open file, its series columns and the rows not yet written.
 
 struct RunFile::Impl {
   fs::path path;
@@ -160,10 +222,15 @@ struct RunFile::Impl {
   Handle series_group;
   Handle stage_group;
   Handle snapshots_group;
+  Handle run_group;
   std::vector<std::string> stage_names;
   // One column per series dataset, in the order of SeriesRow's fields.
   std::vector<hdf5::ExtendableColumn> columns;        // step .. wall_seconds
   std::vector<hdf5::ExtendableColumn> stage_columns;  // one per stage
+  std::optional<hdf5::ExtendableColumn> snapshot_time_column;  // /snapshot_time
+  std::optional<hdf5::ExtendableColumn> snapshot_step_column;  // /snapshot_step
+  std::vector<double> snapshot_times;  // s, of every snapshot in the file
+  std::int64_t last_snapshot_step = -1;
   // Buffered rows, column by column.
   std::vector<std::int64_t> step, contacts, active_contacts;
   std::vector<int> iterations;
@@ -197,6 +264,9 @@ struct RunFile::Impl {
     const hdf5::QuietErrors quiet;
     columns.clear();
     stage_columns.clear();
+    snapshot_time_column.reset();
+    snapshot_step_column.reset();
+    run_group.reset();
     stage_group.reset();
     series_group.reset();
     snapshots_group.reset();
@@ -249,7 +319,7 @@ RunFile::~RunFile() {
 }
 
 RunFile RunFile::create(const fs::path& path, const Model& model, std::string_view scene_text,
-                        std::span<const std::string_view> stage_names) {
+                        std::span<const std::string_view> stage_names, std::span<const RunParameter> parameters) {
   std::set<std::string_view> unique_names;
   for (std::string_view name : stage_names) {
     if (name.empty() || name.find_first_of("/.") != std::string_view::npos || !unique_names.insert(name).second) {
@@ -261,7 +331,7 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->body_count = model.body_count();
-  impl->file = hdf5::create_file(path);
+  impl->file = hdf5::create_file(path, hdf5::ChunkIndex::small);
   const hid_t root = impl->file.get();
 
   hdf5::write_attribute(root, "format", run_file_format, path);
@@ -271,28 +341,43 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   hdf5::write_string(root, "scene", scene_text, path);
   write_model(root, model, path);
 
+  // How the run was set up, with its "auto" values resolved, and whether it has ended.
+  impl->run_group = hdf5::create_group(root, "run", path);
+  hdf5::write_attribute(impl->run_group.get(), "status", run_status_name(RunStatus::running), path);
+  for (const RunParameter& parameter : parameters) {
+    if (parameter.name.empty() || parameter.name.find_first_of("/.") != std::string::npos) {
+      throw std::invalid_argument(path.string() + ": bad run parameter name '" + parameter.name + "'");
+    }
+    const std::array<hsize_t, 0> scalar{};
+    hdf5::write_doubles(impl->run_group.get(), parameter.name, std::span<const double>(&parameter.value, 1), scalar, path);
+    units(impl->run_group.get(), parameter.name, parameter.units, path);
+    hdf5::write_attribute_on(impl->run_group.get(), parameter.name, "source", parameter.automatic ? "auto" : "scene", path);
+  }
+
   impl->series_group = hdf5::create_group(root, "series", path);
   const hid_t series = impl->series_group.get();
-  constexpr hsize_t chunk = 1024;
-  impl->columns.emplace_back(series, "step", H5T_NATIVE_INT64, chunk, path, checksum);
-  impl->columns.emplace_back(series, "time", H5T_NATIVE_DOUBLE, chunk, path, checksum);
-  impl->columns.emplace_back(series, "kinetic_energy", H5T_NATIVE_DOUBLE, chunk, path, checksum);
-  impl->columns.emplace_back(series, "contacts", H5T_NATIVE_INT64, chunk, path, checksum);
-  impl->columns.emplace_back(series, "active_contacts", H5T_NATIVE_INT64, chunk, path, checksum);
-  impl->columns.emplace_back(series, "iterations", H5T_NATIVE_INT, chunk, path, checksum);
-  impl->columns.emplace_back(series, "residual", H5T_NATIVE_DOUBLE, chunk, path, checksum);
-  impl->columns.emplace_back(series, "wall_seconds", H5T_NATIVE_DOUBLE, chunk, path, checksum);
-  for (const char* name : conservation_columns) {
-    impl->columns.emplace_back(series, name, H5T_NATIVE_DOUBLE, chunk, path, checksum);
+  for (const ColumnSpec& column : basic_columns()) {
+    impl->columns.emplace_back(series, column.name, column.type, series_chunk_rows, path, storage);
+    units(series, column.name, column.units, path);
+  }
+  for (std::size_t c = 0; c < conservation_columns.size(); ++c) {
+    impl->columns.emplace_back(series, conservation_columns[c], H5T_NATIVE_DOUBLE, series_chunk_rows, path, storage);
+    units(series, conservation_columns[c], conservation_units[c], path);
   }
   impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
   for (std::string_view name : stage_names) {
     impl->stage_names.emplace_back(name);
-    impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, chunk, path, checksum);
+    impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, series_chunk_rows,
+                                     path, storage);
+    units(impl->stage_group.get(), std::string(name), "s", path);
   }
   hdf5::write_attribute(impl->stage_group.get(), "stage_order", std::span<const std::string>(impl->stage_names), path);
   impl->stage_seconds.resize(stage_names.size());
   impl->snapshots_group = hdf5::create_group(root, "snapshots", path);
+  impl->snapshot_time_column.emplace(root, "snapshot_time", H5T_NATIVE_DOUBLE, series_chunk_rows, path, storage);
+  units(root, "snapshot_time", "s", path);
+  impl->snapshot_step_column.emplace(root, "snapshot_step", H5T_NATIVE_INT64, series_chunk_rows, path, storage);
+  units(root, "snapshot_step", "1", path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));
 }
@@ -321,16 +406,8 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
   const auto keep = static_cast<hsize_t>(
       std::find_if(steps.values.begin(), steps.values.end(), [&](std::int64_t s) { return s > last_step; }) -
       steps.values.begin());
-  const std::array<std::pair<const char*, hid_t>, 8> columns{{{"step", H5T_NATIVE_INT64},
-                                                              {"time", H5T_NATIVE_DOUBLE},
-                                                              {"kinetic_energy", H5T_NATIVE_DOUBLE},
-                                                              {"contacts", H5T_NATIVE_INT64},
-                                                              {"active_contacts", H5T_NATIVE_INT64},
-                                                              {"iterations", H5T_NATIVE_INT},
-                                                              {"residual", H5T_NATIVE_DOUBLE},
-                                                              {"wall_seconds", H5T_NATIVE_DOUBLE}}};
-  for (const auto& [name, type] : columns) {
-    impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, name, type, keep, path));
+  for (const ColumnSpec& column : basic_columns()) {
+    impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, column.name, column.type, keep, path));
   }
   for (const char* name : conservation_columns) {
     impl->columns.push_back(hdf5::ExtendableColumn::open_truncated(series, name, H5T_NATIVE_DOUBLE, keep, path));
@@ -345,14 +422,16 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
   impl->rows = static_cast<std::int64_t>(keep);
 
   // Snapshots are numbered in the order written, and steps grow with the number: drop the tail
-  // written after last_step.
+  // written after last_step, and the state at an interruption (the run goes on from it).
   impl->snapshots_group = hdf5::open_group(root, "snapshots", path);
   const hid_t snapshots = impl->snapshots_group.get();
   for (const std::string& name : hdf5::link_names(snapshots, path)) {
     Handle group = hdf5::open_group(snapshots, name, path);
     const double step = hdf5::read_double_attribute(group.get(), "step", path);
+    const double time = hdf5::read_double_attribute(group.get(), "time", path);
+    const bool interrupted = hdf5::read_double_attribute(group.get(), "interrupted", path) != 0.0;
     group.reset();
-    if (step > static_cast<double>(last_step)) {
+    if (step > static_cast<double>(last_step) || interrupted) {
       hdf5::check(H5Ldelete(snapshots, name.c_str(), H5P_DEFAULT), path, "cannot remove snapshot " + name);
       continue;
     }
@@ -363,7 +442,19 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
                                expected.data() + ")");
     }
     ++impl->snapshots;
+    impl->snapshot_times.push_back(time);
+    impl->last_snapshot_step = static_cast<std::int64_t>(step);
   }
+  const auto kept = static_cast<hsize_t>(impl->snapshots);
+  impl->snapshot_time_column.emplace(
+      hdf5::ExtendableColumn::open_truncated(root, "snapshot_time", H5T_NATIVE_DOUBLE, kept, path));
+  impl->snapshot_step_column.emplace(
+      hdf5::ExtendableColumn::open_truncated(root, "snapshot_step", H5T_NATIVE_INT64, kept, path));
+  if (impl->snapshot_time_column->size() != kept || impl->snapshot_step_column->size() != kept) {
+    throw std::runtime_error(path.string() + ": /snapshot_time or /snapshot_step is shorter than the snapshots");
+  }
+  impl->run_group = hdf5::open_group(root, "run", path);
+  hdf5::replace_attribute(impl->run_group.get(), "status", run_status_name(RunStatus::running), path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));
 }
@@ -408,13 +499,19 @@ void RunFile::append_series(const SeriesRow& row) {
   }
 }
 
-void RunFile::write_snapshot(const State& state, const ContactList& contacts) {
+void RunFile::write_snapshot(const State& state, const ContactList& contacts, bool interrupted) {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
-  f.guarded([&] { write_snapshot_now(state, contacts); });
+  f.guarded([&] { write_snapshot_now(state, contacts, interrupted); });
 }
 
-void RunFile::write_snapshot_now(const State& state, const ContactList& contacts) {
+void RunFile::set_status(RunStatus status) {
+  Impl& f = *impl_;
+  const hdf5::QuietErrors quiet;
+  f.guarded([&] { hdf5::replace_attribute(f.run_group.get(), "status", run_status_name(status), f.path); });
+}
+
+void RunFile::write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted) {
   Impl& f = *impl_;
   std::array<char, 16> name{};
   std::snprintf(name.data(), name.size(), "%06lld", static_cast<long long>(f.snapshots));
@@ -422,20 +519,22 @@ void RunFile::write_snapshot_now(const State& state, const ContactList& contacts
   const hid_t g = group.get();
   hdf5::write_attribute(g, "time", state.time, f.path);
   hdf5::write_attribute(g, "step", state.step, f.path);
+  hdf5::write_attribute(g, "interrupted", std::int64_t{interrupted ? 1 : 0}, f.path);
 
   const std::size_t n = state.body_count();
   if (n != f.body_count || state.orientation.size() != n || state.velocity.size() != n || state.angular_velocity.size() != n) {
     throw std::invalid_argument(f.path.string() + ": snapshot of a state with " + std::to_string(n) +
                                 " bodies (or arrays of different sizes), the model has " + std::to_string(f.body_count));
   }
-  write_vec3s(g, "position", state.position, f.path);
+  write_vec3s(g, "position", state.position, "m", f.path);
   std::vector<double> orientation;
   orientation.reserve(4 * n);
   for (const Quat& q : state.orientation) orientation.insert(orientation.end(), {q.w(), q.x(), q.y(), q.z()});
   const std::array<hsize_t, 2> dims_q{state.orientation.size(), 4};
-  hdf5::write_doubles(g, "orientation", orientation, dims_q, f.path, checksum);
-  write_vec3s(g, "velocity", state.velocity, f.path);
-  write_vec3s(g, "angular_velocity", state.angular_velocity, f.path);
+  hdf5::write_doubles(g, "orientation", orientation, dims_q, f.path, storage);
+  units(g, "orientation", "1", f.path);
+  write_vec3s(g, "velocity", state.velocity, "m/s", f.path);
+  write_vec3s(g, "angular_velocity", state.angular_velocity, "rad/s", f.path);
 
   // Field by field, so that one field's copy (at most 24 bytes a contact) exists at a time: all
   // nine at once were ~140 bytes a contact beside the run's own arrays, the run's peak memory at
@@ -446,32 +545,37 @@ void RunFile::write_snapshot_now(const State& state, const ContactList& contacts
   const auto write_ints = [&](const char* field_name, auto value) {
     std::vector<std::int32_t> column(c);
     for (std::size_t k = 0; k < c; ++k) column[k] = static_cast<std::int32_t>(value(contacts[k]));
-    hdf5::write_int32s(g, field_name, column, dims_c, f.path, checksum);
+    write_integers(hdf5::write_int32s, g, field_name, column, dims_c, f.path);
   };
-  const auto write_vectors = [&](const char* field_name, auto value) {
+  const auto write_vectors = [&](const char* field_name, std::string_view unit, auto value) {
     std::vector<double> flat;
     flat.reserve(3 * c);
     for (const Contact& contact : contacts) {
       const Vec3 v = value(contact);
       flat.insert(flat.end(), {v.x(), v.y(), v.z()});
     }
-    hdf5::write_doubles(g, field_name, flat, dims_c3, f.path, checksum);
+    hdf5::write_doubles(g, field_name, flat, dims_c3, f.path, storage);
+    units(g, field_name, unit, f.path);
   };
   write_ints("contact_body_a", [](const Contact& x) { return x.id.body_a; });
   write_ints("contact_body_b", [](const Contact& x) { return x.id.body_b; });
-  write_vectors("contact_point", [](const Contact& x) -> Vec3 { return x.point; });
-  write_vectors("contact_normal", [](const Contact& x) -> Vec3 { return x.frame.col(0); });
-  write_vectors("contact_tangent_t", [](const Contact& x) -> Vec3 { return x.frame.col(1); });
-  write_vectors("contact_tangent_s", [](const Contact& x) -> Vec3 { return x.frame.col(2); });
-  write_vectors("contact_impulse", [](const Contact& x) -> Vec3 { return x.impulse; });
+  write_vectors("contact_point", "m", [](const Contact& x) -> Vec3 { return x.point; });
+  write_vectors("contact_normal", "1", [](const Contact& x) -> Vec3 { return x.frame.col(0); });
+  write_vectors("contact_tangent_t", "1", [](const Contact& x) -> Vec3 { return x.frame.col(1); });
+  write_vectors("contact_tangent_s", "1", [](const Contact& x) -> Vec3 { return x.frame.col(2); });
+  write_vectors("contact_impulse", "N s", [](const Contact& x) -> Vec3 { return x.impulse; });
   {
     std::vector<double> gap(c);
     for (std::size_t k = 0; k < c; ++k) gap[k] = contacts[k].gap;
-    hdf5::write_doubles(g, "contact_gap", gap, dims_c, f.path, checksum);
+    write_column(g, "contact_gap", gap, "m", f.path);
   }
   std::vector<std::int8_t> status(c);
   for (std::size_t k = 0; k < c; ++k) status[k] = static_cast<std::int8_t>(contacts[k].status);
-  hdf5::write_int8s(g, "contact_status", status, dims_c, f.path, checksum);
+  write_integers(hdf5::write_int8s, g, "contact_status", status, dims_c, f.path);
+  f.snapshot_time_column->append(&state.time, 1, f.path);
+  f.snapshot_step_column->append(&state.step, 1, f.path);
+  f.snapshot_times.push_back(state.time);
+  f.last_snapshot_step = state.step;
   ++f.snapshots;
 }
 
@@ -487,5 +591,7 @@ void RunFile::flush() {
 const fs::path& RunFile::path() const { return impl_->path; }
 std::int64_t RunFile::snapshot_count() const { return impl_->snapshots; }
 std::int64_t RunFile::series_rows() const { return impl_->rows; }
+const std::vector<double>& RunFile::snapshot_times() const { return impl_->snapshot_times; }
+std::int64_t RunFile::last_snapshot_step() const { return impl_->last_snapshot_step; }
 
 }  // namespace rubble

@@ -18,8 +18,32 @@ namespace rubble {
 
 /// Identifies the layout in the file's root attributes; bump format_version on any change.
 inline constexpr std::string_view run_file_format = "rubble-run";
-/// Version of the layout written by RunFile (docs/output-format.md).
-inline constexpr int run_file_format_version = 1;
+/// Version of the layout written by RunFile (docs/output-format.md). 2: units on every numeric
+/// dataset, gzip compression, /run (status and resolved settings), /snapshot_time and
+/// /snapshot_step, /snapshots/NNNNNN@interrupted. RunReader reads versions 1 and 2.
+inline constexpr int run_file_format_version = 2;
+
+/// One setting of the run as the run used it (/run/<name> in the run file): what the scene gave,
+/// or what rubble chose where the scene said "auto" or left the key out.
+struct RunParameter {
+  std::string name;           ///< dataset name under /run (no '/' or '.')
+  double value = 0.0;         ///< in SI units
+  std::string units;          ///< e.g. "s", "J", "m"
+  bool automatic = false;     ///< chosen by rubble ("auto" or a default computed from the scene)
+};
+
+/// Why a run file's run ended, or that it has not (/run@status).
+enum class RunStatus {
+  running,            ///< being written, or the writer was killed (SIGKILL, power loss)
+  at_rest,            ///< stopped because the grains were at rest (until = "rest")
+  end_time,           ///< reached its end time
+  interrupted,        ///< stopped by SIGINT/SIGTERM; the last snapshot is the state at the stop
+  numerical_failure,  ///< stopped on a non-finite or runaway state
+  closed,             ///< a recording closed by its program (Python Simulation) before either end
+};
+
+/// The word stored for a status ("running", "at_rest", ...).
+std::string_view run_status_name(RunStatus status);
 
 /// One row of the per-step series (/series in the run file).
 struct SeriesRow {
@@ -51,14 +75,19 @@ class RunFile {
   /// `scene_text` is the scene as TOML, stored verbatim so that the run can be reproduced.
   /// `stage_names` names the columns of SeriesRow::stage_seconds (/series/stage_seconds/<name>);
   /// names must be non-empty, unique and free of '/' and '.'.
+  /// `parameters` are stored under /run with their units and whether they were automatic; the
+  /// status starts as "running".
   static RunFile create(const std::filesystem::path& path, const Model& model, std::string_view scene_text,
-                        std::span<const std::string_view> stage_names);
+                        std::span<const std::string_view> stage_names, std::span<const RunParameter> parameters = {});
 
   /// Opens an existing run file to resume a run from a checkpoint taken at step `last_step`:
   /// series rows and snapshots of later steps (written after that checkpoint by the run that
   /// stopped) are removed, so that the resumed run appends with no step written twice or missing.
   /// `stage_names` must be the names the file was created with. Throws std::runtime_error naming
   /// the file if it cannot be opened or is not a run file. (simulation/checkpoint.hpp)
+  /// A snapshot written at an interruption (write_snapshot(..., interrupted = true)) is removed
+  /// too: the resumed run goes on from that state, and its file then equals an uninterrupted run's.
+  /// The status goes back to "running".
   static RunFile reopen(const std::filesystem::path& path, std::int64_t last_step,
                         std::span<const std::string_view> stage_names);
 
@@ -72,8 +101,12 @@ class RunFile {
   /// Throws std::invalid_argument if row.stage_seconds does not match the stage names.
   void append_series(const SeriesRow& row);
   /// Writes /snapshots/NNNNNN (NNNNNN = number of snapshots written before, 6 digits) with the
-  /// state of every body and every contact point of the list.
-  void write_snapshot(const State& state, const ContactList& contacts);
+  /// state of every body and every contact point of the list, and a row of /snapshot_time and
+  /// /snapshot_step. `interrupted` marks the state at a stop by signal (@interrupted = 1), which
+  /// reopen() removes.
+  void write_snapshot(const State& state, const ContactList& contacts, bool interrupted = false);
+  /// Sets /run@status (written to disk with the next flush).
+  void set_status(RunStatus status);
   /// Writes the buffered series rows and flushes HDF5's buffers to disk.
   void flush();
   /// From now on HDF5 writes the file's metadata only in flush() (and on close): its metadata
@@ -89,6 +122,10 @@ class RunFile {
   std::int64_t snapshot_count() const;
   /// Series rows appended so far (written or buffered).
   std::int64_t series_rows() const;
+  /// s, simulated time of every snapshot in the file, in order.
+  const std::vector<double>& snapshot_times() const;
+  /// Step of the last snapshot written (-1 if none).
+  std::int64_t last_snapshot_step() const;
 
   /// Rows kept in memory between two writes of the series.
   static constexpr std::size_t series_buffer_rows = 1000;
@@ -96,7 +133,7 @@ class RunFile {
  private:
   struct Impl;
   explicit RunFile(std::unique_ptr<Impl> impl);
-  void write_snapshot_now(const State& state, const ContactList& contacts);
+  void write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted);
   std::unique_ptr<Impl> impl_;
 };
 

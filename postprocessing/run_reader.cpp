@@ -182,8 +182,40 @@ struct RunReader::Impl {
   Model model;
   std::string scene_text;
   std::vector<std::string> snapshot_names;
+  std::string status = "unknown";
+  bool live = false;
   mutable double time_step = -1.0;  // cached; -1: not computed yet
 };
+
+namespace {
+
+/// Opens a run file read-only. HDF5 1.10 refuses a file that another process holds open for
+/// writing ("unable to lock file"): a running `rubble run`. Such a file is opened again without
+/// the lock: the writer keeps the file's metadata in memory between its flushes
+/// (RunFile::hold_metadata_until_flush), so the file on disk is the run as of its last flush.
+Handle open_run_file(const fs::path& path, bool& live) {
+  live = false;
+  if (!fs::exists(path)) throw std::runtime_error(path.string() + ": no such file");
+  hid_t id = -1;
+  H5E_BEGIN_TRY { id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT); }
+  H5E_END_TRY;
+  if (id >= 0) return Handle(id, H5Fclose);
+  const std::string reason = hdf5::last_error_message();
+  if (reason.find("lock") == std::string::npos) return hdf5::own(id, H5Fclose, path, "cannot open as an HDF5 file");
+  Handle access = hdf5::own(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, path, "file access properties");
+  hdf5::check(H5Pset_file_locking(access.get(), false, true), path, "file access properties");
+  H5E_BEGIN_TRY { id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, access.get()); }
+  H5E_END_TRY;
+  if (id < 0) {
+    throw std::runtime_error(path.string() + ": open for writing by a running `rubble run` (HDF5 file lock: " + reason +
+                             ") and not readable without the lock (" + hdf5::last_error_message() +
+                             "); wait for the run to end or stop it (Ctrl-C writes its state and a checkpoint)");
+  }
+  live = true;
+  return Handle(id, H5Fclose);
+}
+
+}  // namespace
 
 RunReader::RunReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 RunReader::RunReader(RunReader&&) noexcept = default;
@@ -194,7 +226,7 @@ RunReader RunReader::open(const fs::path& path) {
   const hdf5::QuietErrors quiet;
   auto impl = std::make_unique<Impl>();
   impl->path = path;
-  impl->file = hdf5::open_file(path);
+  impl->file = open_run_file(path, impl->live);
   const hid_t root = impl->file.get();
   if (H5Aexists(root, "format") <= 0 || hdf5::read_string_attribute(root, "format", path) != run_file_format) {
     bad(path, "not a rubble run file (root attribute format != \"rubble-run\")");
@@ -203,6 +235,14 @@ RunReader RunReader::open(const fs::path& path) {
   if (version > run_file_format_version) {
     bad(path, "run file format version " + std::to_string(static_cast<int>(version)) + " is newer than this rubble reads (" +
                   std::to_string(run_file_format_version) + ")");
+  }
+  if (version >= 2) {
+    Handle run = hdf5::open_group(root, "run", path);
+    impl->status = hdf5::read_string_attribute(run.get(), "status", path);
+    if (hdf5::exists(run.get(), "time_step")) {
+      const hdf5::Array<double> h = hdf5::read_doubles(run.get(), "time_step", path);
+      if (h.values.size() == 1 && h.values[0] > 0.0) impl->time_step = h.values[0];
+    }
   }
   impl->scene_text = hdf5::read_string(root, "scene", path);
   impl->model = read_model(root, path);
@@ -216,6 +256,8 @@ const fs::path& RunReader::path() const { return impl_->path; }
 const Model& RunReader::model() const { return impl_->model; }
 const std::string& RunReader::scene_text() const { return impl_->scene_text; }
 std::size_t RunReader::snapshot_count() const { return impl_->snapshot_names.size(); }
+const std::string& RunReader::status() const { return impl_->status; }
+bool RunReader::live() const { return impl_->live; }
 
 RunSnapshot RunReader::read_snapshot(std::size_t index) const {
   const Impl& r = *impl_;

@@ -44,7 +44,9 @@ struct RunSnapshot {
 /// format version, a missing or misshapen dataset) throws std::runtime_error naming the file.
 class RunReader {
  public:
-  /// Opens the file and reads its model, scene text and snapshot list.
+  /// Opens the file and reads its model, scene text and snapshot list. A file held by a running
+  /// `rubble run` (HDF5 1.10 locks a file open for writing) is opened without the lock: what the
+  /// run flushed last (at its last checkpoint) is read, and live() says so.
   static RunReader open(const std::filesystem::path& path);
 
   RunReader(RunReader&&) noexcept;             ///< takes over the open file
@@ -63,9 +65,16 @@ class RunReader {
   RunSnapshot read_snapshot(std::size_t index) const;
   /// Reads the whole per-step series.
   RunSeries read_series() const;
-  /// The time step h, estimated from the series as (t_last - t_first) / (steps between them), or
-  /// t / step from a single row; 0 if the series is empty. Turns impulses (N s) into forces (N).
+  /// The time step h: /run/time_step (format version 2), else estimated from the series as
+  /// (t_last - t_first) / (steps between them), or t / step from a single row; 0 if the series is
+  /// empty. Turns impulses (N s) into forces (N).
   double time_step() const;
+  /// Why the run ended (/run@status: "running", "at_rest", "end_time", "interrupted",
+  /// "numerical_failure", "closed"; docs/output-format.md), or "unknown" for a version 1 file.
+  const std::string& status() const;
+  /// True when the file was open for writing by a running `rubble run` (HDF5's file lock was
+  /// held): it was opened without the lock and shows the run as of its last flush.
+  bool live() const;
 
  private:
   struct Impl;

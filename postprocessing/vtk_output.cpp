@@ -104,6 +104,7 @@ VtkSeries::VtkSeries(const fs::path& directory, const Model& model, const VtkSer
   impl_->directory = directory;
   impl_->model = &model;
   impl_->options = options;
+  impl_->times = options.earlier_times;
   for (std::size_t i = 0; i < model.body_count(); ++i) {
     impl_->has_spheres |= model.shape_kind[i] == ShapeKind::sphere;
     impl_->has_polyhedra |= model.shape_kind[i] == ShapeKind::polyhedron;

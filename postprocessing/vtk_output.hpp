@@ -27,6 +27,10 @@ struct VtkSeriesOptions {
   /// m, side of the square drawn for a plane wall; 0 picks twice the largest distance from the
   /// wall's origin to a grain's far side in each snapshot.
   double plane_size = 0.0;
+  /// s, times of the snapshots an earlier session of the same run already wrote into the folder
+  /// (a resumed `rubble run`): the series goes on after them, numbering files from their count,
+  /// and the .pvd files keep listing them.
+  std::vector<double> earlier_times;
 };
 
 /// A ParaView time series being written into a folder (created if missing). Files that a model

@@ -12,6 +12,7 @@
 
 #include "postprocessing/metrics.hpp"
 #include "postprocessing/run_file.hpp"
+#include "postprocessing/vtk_output.hpp"
 #include "simulation/output_lock.hpp"
 #include "simulation/run_control.hpp"
 
@@ -172,6 +173,24 @@ std::string short_reason(const std::string& what) {
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) { return run_scene(scene, scene.state, control); }
 
+std::vector<RunParameter> run_parameters(const Scene& scene, std::int64_t snapshot_period) {
+  const RunOptions& run = scene.run;
+  const DetectionOptions& detection = run.step.detection;
+  const double alert = resolve_alert_distance(scene.model, detection);
+  std::vector<RunParameter> parameters{
+      {"time_step", run.step.integrator.time_step, "s", run.automatic_time_step},
+      {"alert_distance", alert, "m", detection.alert_distance <= 0.0},
+      {"pair_list_margin", detection.pair_list_margin < 0.0 ? alert : detection.pair_list_margin, "m",
+       detection.pair_list_margin < 0.0},
+      {"snapshot_every_steps", static_cast<double>(snapshot_period), "1",
+       run.output.snapshot_every_steps <= 0 && run.output.snapshot_interval <= 0.0}};
+  if (run.until_rest) {
+    parameters.push_back({"rest_kinetic_energy", run.rest.mean_kinetic_energy, "J", run.automatic_rest_kinetic_energy});
+    parameters.push_back({"rest_duration", run.rest.duration, "s", run.automatic_rest_duration});
+  }
+  return parameters;
+}
+
 SeriesRow series_row(const Model& model, const State& state, const StepReport& report, const GravitySettings& gravity,
                      double wall_seconds, std::optional<double>& potential) {
   SeriesRow row;
@@ -235,6 +254,9 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   }
   const auto total_steps = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(wanted_steps - 1e-9)));
   std::optional<RunFile> file;
+  // A new run file opens with a snapshot of the state it starts from, written once the VTK
+  // series (if any) exists too: a new run, or a resumed one whose run file had to be replaced.
+  bool first_snapshot_pending = control.resume == nullptr;
   std::int64_t last_checkpoint_step = -1;
   // Every write of the output goes through `output`: a failure (disk full, I/O error) stops the
   // run with an OutputError that says where it stopped and what is left to resume from.
@@ -296,10 +318,13 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
         std::error_code ignored;
         fs::rename(summary.run_file, aside, ignored);
       }
-      output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
-      output([&] { file->write_snapshot(state, workspace.contacts); });
+      const std::vector<RunParameter> parameters = run_parameters(scene, progress.snapshot_period);
+      output([&] {
+        file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names, parameters));
+      });
+      first_snapshot_pending = true;
       progress.series_rows = 0;
-      progress.snapshots = file->snapshot_count();
+      progress.snapshots = 0;
       if (control.warnings) {
         *control.warnings << fmt::format(
             "rubble run: warning: {} cannot be reopened ({}){}; the series goes on in a new {} from step {} (its "
@@ -316,11 +341,29 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
           progress.snapshots));
     }
   } else {
-    output([&] { file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names)); });
     progress.first_step = state.step;
     progress.snapshot_period = snapshot_period(run, total_steps);
+    const std::vector<RunParameter> parameters = run_parameters(scene, progress.snapshot_period);
+    output([&] {
+      file.emplace(RunFile::create(summary.run_file, model, control.scene_text, stage_names, parameters));
+    });
   }
   output([&] { file->hold_metadata_until_flush(); });
+  // [output] vtk = true: the ParaView series in DIR/vtk, one file set per snapshot of the run
+  // file, written with it; a resumed run goes on after the snapshots the run file kept.
+  std::optional<VtkSeries> vtk;
+  if (run.output.write_vtk) {
+    output([&] {
+      vtk.emplace(directory / "vtk", model, VtkSeriesOptions{h, 0.0, file->snapshot_times()});
+    });
+  }
+  // Writes a snapshot of the current state to the run file and the VTK series.
+  const auto write_snapshot = [&](bool interrupted) {
+    output([&] {
+      file->write_snapshot(state, workspace.contacts, interrupted);
+      if (vtk) vtk->write(state, workspace.contacts);
+    });
+  };
   progress.end_step = progress.first_step + total_steps;
   summary.first_step = state.step;
 
@@ -364,7 +407,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const auto start = Clock::now();
   auto last_progress = start;
   auto last_checkpoint_time = start;
-  if (control.resume == nullptr) output([&] { file->write_snapshot(state, workspace.contacts); });
+  if (first_snapshot_pending) write_snapshot(false);
 
   State before;  // the state at the start of the step, to locate a failure
   std::optional<double> potential;  // the grains' potential energy after the last step, J
@@ -396,6 +439,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (problem) {
       const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
       try {
+        file->set_status(RunStatus::numerical_failure);
         file->flush();  // what the run wrote up to the failure, if the disk takes it
       } catch (const std::runtime_error&) {
         // The numerical failure is the news; a run file that cannot be flushed is secondary.
@@ -438,7 +482,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     const bool at_rest = run.until_rest && grain_count > 0 &&
                          rest.update(state.time, row.kinetic_energy / static_cast<double>(grain_count));
     const bool at_end = state.step == progress.end_step || at_rest;
-    if (done % progress.snapshot_period == 0 || at_end) output([&] { file->write_snapshot(state, workspace.contacts); });
+    if (done % progress.snapshot_period == 0 || at_end) write_snapshot(false);
 
     const bool stop = control.stop_requested != nullptr && control.stop_requested->load(std::memory_order_relaxed) != 0;
     const bool by_steps = control.checkpoint_every_steps > 0 && done % control.checkpoint_every_steps == 0;
@@ -448,6 +492,10 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
       output(write_checkpoint_now);
       last_checkpoint_time = Clock::now();
     }
+    // The state at a stop by signal, as the run file's last snapshot (marked @interrupted), after
+    // the checkpoint: the checkpoint does not count it, and a resumed run removes it
+    // (RunFile::reopen), so that its run file equals an uninterrupted run's.
+    if (stop && file->last_snapshot_step() != state.step) write_snapshot(true);
 
     const auto now = Clock::now();
     summary.output_seconds += seconds_between(step_end, now);
@@ -485,7 +533,13 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     }
   }
   if (last_checkpoint_step != state.step) output(write_checkpoint_now);  // e.g. a run of zero steps
-  output([&] { file->flush(); });
+  const RunStatus status = summary.interrupted   ? RunStatus::interrupted
+                           : summary.reached_rest ? RunStatus::at_rest
+                                                  : RunStatus::end_time;
+  output([&] {
+    file->set_status(status);
+    file->flush();
+  });
 
   summary.final_step = state.step;
   summary.steps = state.step - summary.first_step;

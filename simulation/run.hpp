@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "postprocessing/run_file.hpp"
 #include "simulation/checkpoint.hpp"
@@ -95,6 +96,12 @@ struct RunSummary {
 /// stage_seconds views report.stage_seconds.
 SeriesRow series_row(const Model& model, const State& state, const StepReport& report, const GravitySettings& gravity,
                      double wall_seconds, std::optional<double>& potential);
+
+/// The settings stored under /run in the run file (docs/output-format.md): the time step, alert
+/// distance, pair-list margin and snapshot period (steps) as the run uses them, and with
+/// until = "rest" the rest threshold and duration; each says whether rubble chose it ("auto", or
+/// a key left out whose default depends on the scene).
+std::vector<RunParameter> run_parameters(const Scene& scene, std::int64_t snapshot_period);
 
 /// Runs `scene` from its initial state (or from control.resume) to its end time. Writes
 /// DIR/run.h5 (model, per-step series, snapshots; docs/output-format.md) and checkpoints in

@@ -8,6 +8,7 @@ Metric names and definitions: docs/postprocessing.md (coordination, coordination
 packing_fraction, aggregate_diameter, kinetic_energy, potential_energy, ...).
 """
 import os
+import sys
 
 from ._rubble import RunReader, Simulation, VtkSeries, _post_process_run  # noqa: F401
 
@@ -21,9 +22,14 @@ def metrics(source, every=1, impulse_threshold=0.0):
     return reader.metrics(every=every, impulse_threshold=impulse_threshold)
 
 
-def process(run_file, output="rubble-post", vtk=False, plots=True, every=1, bins=20):
-    """What `rubble post RUN.h5 --out OUTPUT [--vtk] [--every N] [--no-plots]` writes; returns the files."""
-    return _post_process_run(os.fspath(run_file), os.fspath(output), bool(vtk), bool(plots), int(every), int(bins))
+def process(run_file, output="rubble-post", vtk=False, plots=True, every=1, bins=20, python=None):
+    """What `rubble post RUN.h5 --out OUTPUT [--vtk] [--every N] [--no-plots]` writes; returns the files.
+
+    The plots are drawn with `python` (default: this interpreter) and the package's own plots.py;
+    without matplotlib they are left out with a warning on stderr, the other files written."""
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "plots.py")
+    return _post_process_run(os.fspath(run_file), os.fspath(output), bool(vtk), bool(plots), int(every), int(bins),
+                             python or sys.executable, script)
 
 
 def read_run(run_file):

@@ -6,6 +6,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <fmt/format.h>
+#include <iostream>
 #include <span>
 
 #include "bindings.hpp"
@@ -239,11 +240,14 @@ void bind_tools(py::module_& m) {
   m.def(
       "_post_process_run",
       [](const std::filesystem::path& run_file, const std::filesystem::path& output, bool vtk, bool plots, int every,
-         int bins) {
+         int bins, const std::string& python, const std::filesystem::path& plots_script) {
         PostOptions options;
         options.output_directory = output;
         options.write_vtk = vtk;
         options.plots = plots;
+        options.plot.python = python;
+        options.plot.script = plots_script;
+        options.warnings = &std::cerr;
         options.every = every;
         options.histogram_bins = bins;
         {
@@ -261,7 +265,8 @@ void bind_tools(py::module_& m) {
         for (const auto& f : files) names.push_back(f.string());
         return names;
       },
-      py::arg("run_file"), py::arg("output"), py::arg("vtk"), py::arg("plots"), py::arg("every"), py::arg("bins"));
+      py::arg("run_file"), py::arg("output"), py::arg("vtk"), py::arg("plots"), py::arg("every"), py::arg("bins"),
+      py::arg("python"), py::arg("plots_script"));
 
   py::class_<VtkSeries>(m, "VtkSeries",
                         "A ParaView series (.vtp per snapshot, .pvd per kind) of a Simulation: VtkSeries(folder, sim); "

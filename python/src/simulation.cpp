@@ -151,9 +151,6 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
   if (record_) throw std::runtime_error("already recording " + record_->path().string() + "; close it first");
   std::filesystem::create_directories(directory);
   const std::vector<std::string_view> names = stage_names();
-  record_.emplace(RunFile::create(directory / "run.h5", scene_.model, scene_text_, names));
-  record_->hold_metadata_until_flush();
-  record_first_step_ = state_.step;
   const OutputOptions& output = scene_.run.output;
   if (output.snapshot_every_steps > 0) {
     snapshot_period_ = output.snapshot_every_steps;
@@ -162,6 +159,15 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
   } else {
     snapshot_period_ = std::max<std::int64_t>(1, steps_to(end_time) / 100);
   }
+  const std::vector<RunParameter> parameters = run_parameters(scene_, snapshot_period_);
+  record_.emplace(RunFile::create(directory / "run.h5", scene_.model, scene_text_, names, parameters));
+  record_->hold_metadata_until_flush();
+  record_vtk_.reset();
+  if (output.write_vtk) {
+    record_vtk_.emplace(directory / "vtk", scene_.model,
+                        VtkSeriesOptions{scene_.run.step.integrator.time_step, 0.0, {}});
+  }
+  record_first_step_ = state_.step;
   progress_.first_step = state_.step;
   potential_energy_.reset();  // the run loop's monitor starts afresh with the file
   progress_.snapshot_period = snapshot_period_;
@@ -173,14 +179,20 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
 void Simulation::write_snapshot() {
   if (!record_ || last_snapshot_step_ == state_.step) return;
   record_->write_snapshot(state_, workspace_.contacts);
+  if (record_vtk_) record_vtk_->write(state_, workspace_.contacts);
   last_snapshot_step_ = state_.step;
 }
 
 void Simulation::close_record() {
   if (!record_) return;
   write_snapshot();
+  // As run_scene says why it ended; a script may also stop before either end ("closed").
+  record_->set_status(at_rest_                                ? RunStatus::at_rest
+                      : state_.step >= progress_.end_step ? RunStatus::end_time
+                                                              : RunStatus::closed);
   record_->flush();
   record_.reset();
+  record_vtk_.reset();
 }
 
 std::filesystem::path Simulation::record_path() const { return record_ ? record_->path() : std::filesystem::path(); }

@@ -18,6 +18,7 @@
 
 #include "postprocessing/metrics.hpp"
 #include "postprocessing/run_file.hpp"
+#include "postprocessing/vtk_output.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/run_control.hpp"
 #include "simulation/scene.hpp"
@@ -128,6 +129,10 @@ class Simulation {
   RestDetector rest_{};
 
   std::optional<RunFile> record_;
+  /// The ParaView series of the recording (DIR/vtk) when the scene says [output] vtk = true. It
+  /// points to scene_.model: created by record(), when the object no longer moves (it lives in
+  /// its Python wrapper).
+  std::optional<VtkSeries> record_vtk_;
   std::int64_t record_first_step_ = 0;
   std::int64_t snapshot_period_ = 1;
   std::int64_t last_snapshot_step_ = -1;

@@ -61,6 +61,11 @@ def test_recorded_run_file_matches_the_cli_run_file(rubble_exe, tiny_deposit, tm
     sim.close()
     with h5py.File(tmp_path / "cli" / "run.h5") as cli, h5py.File(tmp_path / "py" / "run.h5") as py:
         assert cli["scene"][()] == py["scene"][()]
+        # Both say why they ended and store the settings as used, with units.
+        assert cli["run"].attrs["status"] == py["run"].attrs["status"] == "end_time"
+        for name in ("time_step", "alert_distance", "pair_list_margin", "snapshot_every_steps"):
+            assert cli["run"][name][()] == py["run"][name][()], name
+            assert cli["run"][name].attrs["units"] == py["run"][name].attrs["units"], name
         for column in ("step", "time", "kinetic_energy", "contacts", "active_contacts", "iterations", "residual",
                        "potential_energy", "total_energy", "linear_momentum_z", "angular_momentum_x"):
             np.testing.assert_array_equal(cli["series"][column][:], py["series"][column][:])

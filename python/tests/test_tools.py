@@ -1,5 +1,7 @@
 """rubble.gravity, rubble.fclib, rubble.post, random polyhedra and scenes built from dicts,
 against analytical or independent references."""
+import os
+
 import h5py
 import numpy as np
 import pytest
@@ -165,6 +167,39 @@ def test_vtk_series_and_post_process(tmp_path, tiny_deposit):
     sim.close()
     files = rubble.post.process(tmp_path / "run" / "run.h5", tmp_path / "post", plots=False)
     assert any(f.endswith(".csv") for f in files)
+    with h5py.File(tmp_path / "run" / "run.h5") as f:
+        assert f["run"].attrs["status"] == "closed"  # closed at t = 5 ms, before its end time (10 ms)
+
+
+def test_recording_with_vtk_true_writes_the_paraview_series(tmp_path, tiny_deposit):
+    # [output] vtk = true is not ignored by a Python recording: one ParaView entry per snapshot.
+    text = open(tiny_deposit, encoding="utf-8").read().replace("[output]\n", "[output]\nvtk = true\n", 1)
+    scene_path = tmp_path / "vtk.toml"
+    scene_path.write_text(text)
+    sim = rubble.Simulation(rubble.load_scene(scene_path))
+    sim.record(tmp_path / "run", end_time=0.1)  # snapshot_interval 0.02 s: t = 0, 0.02, ..., 0.1
+    sim.run(until=0.1)
+    sim.close()
+    with h5py.File(tmp_path / "run" / "run.h5") as f:
+        snapshots = len(f["snapshots"])
+    pvd = (tmp_path / "run" / "vtk" / "spheres.pvd").read_text()
+    assert snapshots == 6 and pvd.count("<DataSet ") == snapshots
+
+
+def test_post_process_plots_with_this_interpreter_or_warns(tmp_path, tiny_deposit, capfd):
+    sim = rubble.Simulation(rubble.load_scene(tiny_deposit))
+    sim.record(tmp_path / "run", end_time=0.01)
+    sim.step(20)
+    sim.close()
+    pytest.importorskip("matplotlib")
+    # The running interpreter (it has matplotlib) and the package's plots.py; a deposit's figures.
+    files = [os.path.basename(f) for f in rubble.post.process(tmp_path / "run" / "run.h5", tmp_path / "post")]
+    assert "kinetic_energy.png" in files and "impulse_distribution.png" in files
+    assert "aggregate_diameter.png" not in files  # uniform gravity: a deposit, not an aggregate
+    # An interpreter that cannot plot: the other files, and a warning instead of an error.
+    files = rubble.post.process(tmp_path / "run" / "run.h5", tmp_path / "post2", python=str(tmp_path / "no-python"))
+    assert not any(f.endswith(".png") for f in files) and any(f.endswith("metrics.csv") for f in files)
+    assert "plots not drawn" in capfd.readouterr().err
 
 
 def test_scene_from_dict_with_generators_and_contact_laws():

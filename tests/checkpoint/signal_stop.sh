@@ -39,6 +39,23 @@ stop_with() {  # stop_with SIGNAL EXPECTED_CODE LOG [rubble run arguments...]
   echo "signal_stop: $(grep 'stopped by' "$log")"
 }
 stop_with TERM 143 "$work/term.log" "$scene" --out "$run_dir"
+# run.h5 says the run was interrupted, and its last snapshot is the state at the stop (marked
+# @interrupted unless the stop fell on a step of the snapshot cadence).
+stopped_step=$(grep -o 'stopped by SIGTERM at step [0-9]*' "$work/term.log" | awk '{print $NF}')
+/usr/bin/python3 - "$run_dir/run.h5" "$stopped_step" << 'EOF'
+import sys
+import h5py
+with h5py.File(sys.argv[1], "r") as f:
+    step = int(sys.argv[2])
+    last = f["snapshots"][sorted(f["snapshots"])[-1]]
+    marked = 0 if step % int(f["run/snapshot_every_steps"][()]) == 0 else 1
+    found = (f["run"].attrs["status"], int(last.attrs["step"]), int(last.attrs["interrupted"]), int(f["snapshot_step"][-1]))
+    expected = ("interrupted", step, marked, step)
+    if found != expected:
+        sys.exit(f"signal_stop: FAILED: status, last snapshot step, @interrupted, /snapshot_step[-1] = {found}, "
+                 f"expected {expected}")
+    print(f"signal_stop: run.h5 status interrupted, last snapshot at step {step} (@interrupted = {marked})")
+EOF
 stop_with INT 130 "$work/int.log" --resume "$run_dir"
 "$rubble" run --resume "$run_dir" "${options[@]}" > "$work/final.log"
 if [ "$(hash_of "$work/final.log")" != "$reference_hash" ]; then

@@ -97,6 +97,18 @@ RunRecord read_record(const fs::path& file) {
   }
   return record;
 }
+/// The number of data sets listed by a ParaView collection (.pvd), and their times.
+std::vector<double> pvd_times(const fs::path& pvd) {
+  std::ifstream in(pvd);
+  std::vector<double> times;
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto at = line.find("timestep=\"");
+    if (at != std::string::npos) times.push_back(std::stod(line.substr(at + 10)));
+  }
+  return times;
+}
+
 void expect_same_record(const RunRecord& a, const RunRecord& b) {
   EXPECT_EQ(a.series.step, b.series.step);
   EXPECT_EQ(a.series.time, b.series.time);
@@ -172,12 +184,61 @@ TEST(Restart, StopFlagWritesACheckpointAndResumesIdentically) {
 
   const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
   EXPECT_EQ(loaded.checkpoint.state.step, 1);
+  {
+    // The state at the stop is also the run file's last snapshot (the initial one, then step 1),
+    // and the file says why the run ended.
+    const RunReader reader = RunReader::open(stopped.run_file);
+    EXPECT_EQ(reader.status(), "interrupted");
+    ASSERT_EQ(reader.snapshot_count(), 2u);
+    const RunSnapshot last = reader.read_snapshot(1);
+    EXPECT_EQ(last.state.step, 1);
+    EXPECT_EQ(state_hash(last.state), state_hash(loaded.checkpoint.state));
+    EXPECT_EQ(state_hash(last.state), stopped.state_hash);
+  }
   RunControl resume = control_for();
   resume.resume = &loaded.checkpoint;
   const RunSummary finished = run_scene(scene, resume);
   EXPECT_FALSE(finished.interrupted);
   EXPECT_EQ(finished.state_hash, reference.state_hash);
+  // The snapshot of the stop is gone (step 1 is off the 25-step cadence): the same file as the
+  // uninterrupted run's.
   expect_same_record(read_record(finished.run_file), read_record(reference.run_file));
+  EXPECT_EQ(RunReader::open(finished.run_file).status(), "end_time");
+}
+
+// [output] vtk = true: the ParaView series is written during the run, one entry per snapshot of
+// the run file (17 here: step 0 and every 25 steps to 400), also across a stop and a resume (the
+// stop's own snapshot is replaced by the resumed run's next ones).
+TEST(RunScene, VtkTrueWritesTheParaViewSeriesWithTheSnapshots) {
+  Scene scene = scene_in("vtk");
+  scene.run.output.write_vtk = true;
+  RunControl control = control_for();
+  const std::atomic<int> stop{2};  // as if SIGINT came during the first step
+  control.stop_requested = &stop;
+  const RunSummary stopped = run_scene(scene, control);
+  const fs::path vtk = fs::path(scene.run.output.directory) / "vtk";
+  EXPECT_EQ(pvd_times(vtk / "spheres.pvd"), (std::vector<double>{0.0, 1e-4}));
+
+  const LoadedCheckpoint loaded = load_newest_checkpoint(checkpoint_folder(scene.run.output.directory));
+  RunControl resume = control_for();
+  resume.resume = &loaded.checkpoint;
+  const RunSummary finished = run_scene(scene, resume);
+  EXPECT_EQ(finished.snapshots, 17);
+  const RunReader reader = RunReader::open(finished.run_file);
+  std::vector<double> snapshot_times;
+  for (std::size_t k = 0; k < reader.snapshot_count(); ++k) snapshot_times.push_back(reader.read_snapshot(k).state.time);
+  for (const char* kind : {"spheres", "contacts", "walls"}) {
+    SCOPED_TRACE(kind);
+    const std::vector<double> times = pvd_times(vtk / (std::string(kind) + ".pvd"));
+    ASSERT_EQ(times.size(), 17u);
+    for (std::size_t k = 0; k < times.size(); ++k) EXPECT_NEAR(times[k], snapshot_times[k], 1e-12);
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%s_%06zu.vtp", kind, k);
+      EXPECT_TRUE(fs::exists(vtk / name)) << name;
+    }
+  }
+  EXPECT_FALSE(fs::exists(vtk / "polyhedra.pvd"));  // no polyhedra in the scene
 }
 
 TEST(Restart, LongerEndTimeExtendsTheRunWithTheSameSnapshotCadence) {
@@ -205,7 +266,8 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
   const RunRecord reference_record = read_record(reference.run_file);
   for (const std::string damage : {"missing", "garbage"}) {
     SCOPED_TRACE(damage);
-    const Scene scene = scene_in("no_file_" + damage);
+    Scene scene = scene_in("no_file_" + damage);
+    scene.run.output.write_vtk = true;
     RunControl control = control_for();
     control.checkpoint_every_steps = 100;
     control.checkpoints_kept = 10;
@@ -214,6 +276,7 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
     const fs::path checkpoint_file = checkpoint_folder(directory) / "step-000000000200.ckpt";
     const Checkpoint checkpoint = read_checkpoint(checkpoint_file);
     fs::remove(directory / "run.h5");
+    fs::remove_all(directory / "vtk");  // lost with it: the series is rewritten from the checkpoint
     if (damage == "garbage") std::ofstream(directory / "run.h5") << "not an HDF5 file at all";
     std::ostringstream warnings;
     RunControl resume = control;
@@ -230,6 +293,11 @@ TEST(Restart, ResumesWithoutAnIntactRunFile) {
     ASSERT_FALSE(record.snapshot_steps.empty());
     EXPECT_EQ(record.snapshot_steps.front(), 200);
     EXPECT_EQ(record.snapshot_hashes.back(), reference_record.snapshot_hashes.back());
+    // The ParaView series starts again with the new run file: its entries are the file's snapshots.
+    const std::vector<double> times = pvd_times(directory / "vtk" / "spheres.pvd");
+    ASSERT_EQ(times.size(), record.snapshot_steps.size());
+    EXPECT_NEAR(times.front(), 0.02, 1e-12);
+    EXPECT_TRUE(fs::exists(directory / "vtk" / "spheres_000000.vtp"));
   }
 }
 

@@ -6,7 +6,10 @@ Usage: check_run_file.py RUN.h5 EXPECTED.json OUTPUT-FORMAT.md
 
 - The layout: every table row of the document whose first cell is a path (`/...`) is one dataset or
   attribute (`object@attribute`); NNNNNN stands for every snapshot and <stage> for every stage name.
-  The file must hold exactly these, with the documented type and shape.
+  The file must hold exactly these, with the documented type and shape (rows whose meaning starts
+  with "Only" may be missing). Every dataset with a units cell has a `units` attribute equal to it
+  (implied, not listed as a row); the numeric datasets of snapshots are compressed (gzip, shuffle)
+  and checksummed.
 - The values: EXPECTED.json (written by test_run_file.cpp from its own model and states, not from the
   file) lists the sizes and the values of every dataset; they must match.
 Exits 0 when everything matches, 1 with one line per problem otherwise.
@@ -26,14 +29,15 @@ def fail(message):
 
 
 def parse_layout(doc_path):
-    """(path, type, shape) of every documented dataset and attribute."""
+    """(path, type, shape, units, optional) of every documented dataset and attribute."""
     rows = []
-    pattern = re.compile(r"^\| `(/[^`]*)` \| ([\w]+) \| ([^|]+) \|")
+    pattern = re.compile(r"^\| `(/[^`]*)` \| ([\w]+) \| ([^|]+) \| ([^|]*) \| (.*)\|\s*$")
     with open(doc_path, encoding="utf-8") as doc:
         for line in doc:
             match = pattern.match(line)
             if match:
-                rows.append((match.group(1), match.group(2), match.group(3).strip()))
+                rows.append((match.group(1), match.group(2), match.group(3).strip(), match.group(4).strip(),
+                             match.group(5).strip().startswith("Only")))
     return rows
 
 
@@ -133,12 +137,15 @@ def main():
 
         # Expand the documented layout over snapshots and stages.
         documented = []
-        for path, type_name, shape in layout:
+        units_of = {}
+        optional = set()
+        for path, type_name, shape, units, is_optional in layout:
             names = snapshots if "NNNNNN" in path else [None]
             for snapshot_index, snapshot in enumerate(names):
                 for stage in stages if "<stage>" in path else [None]:
                     concrete = path
                     sizes = dict(expected["sizes"])
+                    sizes["T"] = len(expected["snapshots"])
                     sizes["stages"] = len(stages)
                     if snapshot is not None:
                         concrete = concrete.replace("NNNNNN", snapshot)
@@ -146,13 +153,34 @@ def main():
                     if stage is not None:
                         concrete = concrete.replace("<stage>", stage)
                     documented.append((concrete, type_name, evaluate_shape(shape, sizes)))
+                    if is_optional:
+                        optional.add(concrete)
+                    if "@" not in concrete and units:
+                        units_of[concrete] = units
 
         items, _ = actual_items(h5)
-        documented_paths = {p for p, _, _ in documented}
+        documented_paths = {p for p, _, _ in documented} | {p + "@units" for p in units_of}
         for extra in sorted(items - documented_paths):
             fail(f"{extra}: in the file but not in {doc_path}")
         for missing in sorted(documented_paths - items):
-            fail(f"{missing}: documented but not in the file")
+            if missing not in optional and missing.split("@")[0] not in optional:
+                fail(f"{missing}: documented but not in the file")
+
+        # Units: the attribute of every dataset equals the table's units column.
+        for path, units in units_of.items():
+            if path in items and (path + "@units") in items and h5[path].attrs["units"] != units:
+                fail(f"{path}@units = {h5[path].attrs['units']!r}, documented {units!r}")
+
+        # Storage: numeric datasets of the snapshots, series and model are shuffled, deflated and
+        # checksummed (empty and scalar ones stay contiguous: nothing to filter).
+        for path in units_of:
+            if path not in items or not path.startswith(("/snapshots/", "/series/", "/model/")):
+                continue
+            dataset = h5[path]
+            if dataset.shape and dataset.size > 0 or dataset.maxshape != dataset.shape:
+                if (dataset.compression, dataset.compression_opts, dataset.shuffle, dataset.fletcher32) != ("gzip", 4, True, True):
+                    fail(f"{path}: stored with {dataset.compression} {dataset.compression_opts}, shuffle {dataset.shuffle}, "
+                         f"fletcher32 {dataset.fletcher32}; expected gzip 4, shuffle, fletcher32")
 
         # Types and shapes.
         for path, type_name, shape in documented:
@@ -182,10 +210,19 @@ def main():
                 print("check_run_file:", problem)
             print(f"check_run_file: layout only, {len(layout)} documented rows, {len(problems)} problems")
             return 1 if problems else 0
-        if h5.attrs["format"] != "rubble-run" or int(h5.attrs["format_version"]) != 1:
+        if h5.attrs["format"] != "rubble-run" or int(h5.attrs["format_version"]) != 2:
             fail("root format attributes")
         if not re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", h5.attrs["created"]):
             fail(f"created = {h5.attrs['created']!r} is not ISO 8601 UTC")
+        if h5["/run"].attrs["status"] != expected.get("status", "running"):
+            fail(f"/run@status = {h5['/run'].attrs['status']!r}, expected {expected.get('status', 'running')!r}")
+        for name, (value, units, source) in expected.get("run", {}).items():
+            dataset = h5.get(f"/run/{name}")
+            if dataset is None:
+                fail(f"/run/{name}: missing")
+            elif (dataset[()], dataset.attrs["units"], dataset.attrs["source"]) != (value, units, source):
+                fail(f"/run/{name}: {dataset[()]} {dataset.attrs['units']} ({dataset.attrs['source']}), "
+                     f"expected {value} {units} ({source})")
         if h5["/scene"].asstr()[()] != expected["scene"]:
             fail("/scene differs from the scene text given")
         for key in ("body_count", "grain_count"):
@@ -209,8 +246,12 @@ def main():
             group = h5[f"/snapshots/{index:06d}"]
             if group.attrs["time"] != snapshot["time"] or group.attrs["step"] != snapshot["step"]:
                 fail(f"{group.name}: time/step attributes")
+            if h5["/snapshot_time"][index] != snapshot["time"] or h5["/snapshot_step"][index] != snapshot["step"]:
+                fail(f"/snapshot_time or /snapshot_step row {index} differs from {group.name}")
+            if group.attrs["interrupted"] != snapshot.get("interrupted", 0):
+                fail(f"{group.name}@interrupted = {group.attrs['interrupted']}")
             for key, values in snapshot.items():
-                if key in ("time", "step"):
+                if key in ("time", "step", "interrupted"):
                     continue
                 want = as_float_array(values)
                 got = np.asarray(group[key][()], dtype=float)

@@ -51,9 +51,12 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
     chain.push_back(c);
   }
   const fs::path run = dir / "run.h5";
-  {
+  // The same run twice: once ended at rest, once stopped by a signal (in a subfolder).
+  fs::create_directories(dir / "stopped");
+  for (const auto& [path, status] : {std::pair{run, RunStatus::at_rest}, std::pair{dir / "stopped" / "run.h5", RunStatus::interrupted}}) {
     const std::array<std::string_view, 1> stages{"all"};
-    RunFile file = RunFile::create(run, model, "", stages);
+    RunFile file = RunFile::create(path, model, "", stages);
+    file.set_status(status);
     for (int k = 0; k < 6; ++k) {
       const std::array<double, 1> seconds{0.0};
       SeriesRow row;
@@ -88,15 +91,67 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   study.output_directory = dir / "study";
   study.plots = false;
   study.stable_after = 0.45;  // snapshots at t = 0.5 and 0.6
-  post_process_study({dir}, study);  // finds run.h5, skips post/metrics.h5
-  const auto study_rows = read_csv(dir / "study" / "study.csv");
-  ASSERT_EQ(study_rows.size(), 2u);
-  EXPECT_EQ(study_rows[1][1], "spheres");
-  EXPECT_EQ(std::stod(study_rows[1][2]), n);
-  EXPECT_EQ(std::stod(study_rows[1][3]), 0.4);
-  EXPECT_EQ(study_rows[1][4], "2");
-  EXPECT_DOUBLE_EQ(std::stod(study_rows[1][6]), 2.0 - 2.0 / n);
+  post_process_study({dir}, study);  // finds both run.h5, skips post/metrics.h5
+  auto study_rows = read_csv(dir / "study" / "study.csv");
+  ASSERT_EQ(study_rows.size(), 3u);
+  EXPECT_EQ(study_rows[0][1], "status");
+  EXPECT_EQ(study_rows[0][2], "included");
+  EXPECT_EQ(study_rows[1][0], run.string());
+  EXPECT_EQ(study_rows[1][1], "at_rest");
+  EXPECT_EQ(study_rows[1][2], "1");
+  EXPECT_EQ(study_rows[1][3], "spheres");
+  EXPECT_EQ(std::stod(study_rows[1][4]), n);
+  EXPECT_EQ(std::stod(study_rows[1][5]), 0.4);
+  EXPECT_EQ(study_rows[1][6], "2");
+  EXPECT_DOUBLE_EQ(std::stod(study_rows[1][8]), 2.0 - 2.0 / n);
+  // The stopped run is listed with its status and left out of the plots.
+  EXPECT_EQ(study_rows[2][1], "interrupted");
+  EXPECT_EQ(study_rows[2][2], "0");
+  study.include_unfinished = true;
+  post_process_study({dir}, study);
+  study_rows = read_csv(dir / "study" / "study.csv");
+  ASSERT_EQ(study_rows.size(), 3u);
+  EXPECT_EQ(study_rows[2][2], "1");
+  // Only unfinished runs: nothing to plot, unless asked.
+  study.include_unfinished = false;
+  try {
+    post_process_study({dir / "stopped"}, study);
+    ADD_FAILURE() << "expected an error: no run ended at rest";
+  } catch (const std::runtime_error& error) {
+    EXPECT_NE(std::string(error.what()).find("did not end at rest"), std::string::npos) << error.what();
+  }
   EXPECT_THROW(post_process_study({dir / "post"}, study), std::runtime_error);  // no run file there
+}
+
+// Plots are a convenience: without a Python that has matplotlib, post_process_run writes the CSV
+// and HDF5 files, warns, and succeeds.
+TEST(Post, PlotsWithoutMatplotlibAreAWarningNotAnError) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "rubble_test_post_no_matplotlib";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Model model;
+  model.materials = {{"rock", 1000.0}};
+  model.contact_laws.reset(1, ContactLaw{0.4, 0.0});
+  add_sphere(model, 0.5, 0);
+  State state;
+  state.resize(1);
+  {
+    const std::array<std::string_view, 1> stages{"all"};
+    RunFile file = RunFile::create(dir / "run.h5", model, "", stages);
+    file.write_snapshot(state, {});
+  }
+  // A "Python" that cannot import matplotlib (false always fails).
+  std::ostringstream warnings;
+  PostOptions options;
+  options.output_directory = dir / "post";
+  options.plot.python = "false";
+  options.warnings = &warnings;
+  const auto written = post_process_run(dir / "run.h5", options);
+  EXPECT_EQ(written.size(), 4u);  // series.csv, metrics.csv, impulse_distribution.csv, metrics.h5
+  EXPECT_TRUE(fs::exists(dir / "post" / "metrics.csv"));
+  EXPECT_FALSE(fs::exists(dir / "post" / "kinetic_energy.png"));
+  EXPECT_NE(warnings.str().find("plots not drawn: no Python with matplotlib (tried false)"), std::string::npos)
+      << warnings.str();
 }
 
 }  // namespace

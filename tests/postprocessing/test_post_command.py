@@ -5,12 +5,18 @@ Usage: test_post_command.py RUBBLE SCENE POSTPROCESSING.md OUTPUT-FORMAT.md CHEC
 
 1. `rubble run SCENE` (27 spheres falling into a box, 0.4 s) writes WORKDIR/run/run.h5; its layout
    is checked against docs/output-format.md (check_run_file.py in layout-only mode).
-2. `rubble post RUN --vtk` must write every file that docs/postprocessing.md lists for it; PNGs are
-   PNGs, metrics.csv has exactly the documented columns and one row per snapshot, metrics.h5 holds
-   the same numbers, the energy balance is sane (total energy never grows under uniform gravity
-   with dissipative contacts, to 1e-6 relative).
-3. `rubble post --study` on two copies of the run writes every study file the document lists.
-4. Bad input: a missing run file exits with code 2 and names the file.
+2. `rubble post RUN --vtk` must write every file that docs/postprocessing.md lists for it (but the
+   figures marked "aggregate only": the scene is a deposit); PNGs are PNGs, metrics.csv has
+   exactly the documented columns and one row per snapshot, metrics.h5 holds the same numbers, the
+   energy balance is sane (total energy never grows under uniform gravity with dissipative
+   contacts, to 1e-6 relative).
+3. `rubble post --study` on two copies of the run (which ended at its end time, not at rest) refuses
+   them with exit code 2 and says so; with --include-unfinished it writes every study file the
+   document lists, with the runs' status in study.csv.
+4. Plots without matplotlib (`--python` naming a program that has none) are a warning: exit 0,
+   the CSV files written. A run file held open for writing (HDF5's file lock, as by a running
+   `rubble run`) is read with a note instead of failing on the lock.
+5. Bad input: a missing run file exits with code 2 and names the file.
 Prints 'N passed, N failed' and exits non-zero on any failure.
 """
 import csv
@@ -48,6 +54,19 @@ def documented_files(doc, section_title):
     return names
 
 
+def aggregate_only(doc, section_title):
+    """Files of a section whose content cell starts with 'aggregate only'."""
+    names, inside = [], False
+    for line in doc.splitlines():
+        if line.startswith("## "):
+            inside = line.strip() == section_title
+            continue
+        match = re.match(r"^\| `([\w./-]+)` \| aggregate only", line)
+        if inside and match:
+            names.append(match.group(1))
+    return names
+
+
 def run(command, **kwargs):
     print("$", " ".join(command), flush=True)
     return subprocess.run(command, capture_output=True, text=True, **kwargs)
@@ -76,6 +95,9 @@ def main():
         not_applicable.add("vtk/polyhedra.pvd")
     if not kinds & {2, 3}:
         not_applicable.add("vtk/walls.pvd")
+    deposit_only = aggregate_only(post_doc, "## Files written by `rubble post RUN.h5`")
+    check(deposit_only == ["packing_fraction.png", "aggregate_diameter.png"], f"aggregate-only figures: {deposit_only}")
+    not_applicable.update(deposit_only)  # the scene is a deposit under uniform gravity
 
     out = os.path.join(work, "post")
     result = run([rubble, "post", run_file, "--vtk", "-o", out])
@@ -117,13 +139,29 @@ def main():
     shutil.copy(os.path.join(out, "metrics.h5"), os.path.join(study_runs, "run1"))  # not a run file: skipped
     study_out = os.path.join(work, "study")
     result = run([rubble, "post", "--study", study_runs, "-o", study_out, "-q"])
-    check(result.returncode == 0, f"rubble post --study failed: {result.stdout} {result.stderr}")
+    check(result.returncode == 2 and "did not end at rest" in result.stderr and "(end_time)" in result.stderr,
+          f"rubble post --study on runs not at rest: code {result.returncode}, {result.stderr}")
+    result = run([rubble, "post", "--study", study_runs, "-o", study_out, "--include-unfinished", "-q"])
+    check(result.returncode == 0, f"rubble post --study --include-unfinished failed: {result.stdout} {result.stderr}")
     for name in documented_files(post_doc, "## Files written by `rubble post --study`"):
         path = os.path.join(study_out, name)
         check(os.path.isfile(path) and os.path.getsize(path) > 0, f"{path} missing or empty")
     with open(os.path.join(study_out, "study.csv"), newline="") as f:
         study = list(csv.DictReader(f))
     check(len(study) == 2 and all(int(float(r["grains"])) == grains for r in study), "study.csv rows")
+    check(all(r["status"] == "end_time" and r["included"] == "1" for r in study), f"study.csv status: {study}")
+
+    no_plots_out = os.path.join(work, "post-no-matplotlib")
+    result = run([rubble, "post", run_file, "-o", no_plots_out, "--python", os.path.join(work, "no-such-python")])
+    check(result.returncode == 0 and "warning: plots not drawn: no Python with matplotlib" in result.stderr,
+          f"plots without matplotlib: code {result.returncode}, {result.stderr}")
+    check(os.path.isfile(os.path.join(no_plots_out, "metrics.csv")), "metrics.csv not written without matplotlib")
+    check(not os.path.exists(os.path.join(no_plots_out, "kinetic_energy.png")), "a PNG without matplotlib?")
+
+    with h5py.File(run_file, "a"):  # holds HDF5's write lock, as a running `rubble run` does
+        result = run([rubble, "post", run_file, "-o", os.path.join(work, "post-live"), "--no-plots", "-q"])
+    check(result.returncode == 0 and "reading a run in progress" in result.stderr,
+          f"run file held for writing: code {result.returncode}, {result.stderr}")
 
     missing = os.path.join(work, "no-such-run.h5")
     result = run([rubble, "post", missing, "-q"])

@@ -1,5 +1,6 @@
 // The run file writer: a small model with every shape kind, 2345 series rows (more than the
-// 1000-row buffer, not a multiple of it), two snapshots (one with no contact). The file is checked
+// 1000-row buffer, not a multiple of it), two snapshots (one with no contact, marked as the state
+// at an interruption), two run parameters and the status. The file is checked
 // by check_run_file.py with h5py against docs/output-format.md (layout: exactly the documented
 // datasets and attributes, types, shapes) and against the values written here to a JSON file from
 // the test's own objects (an independent path from the HDF5 writer).
@@ -148,7 +149,8 @@ TEST(RunFile, WritesTheDocumentedLayoutAndValues) {
   const ContactList contacts = make_contacts();
   const State second = make_state(model, 1.25, 1250);
   {
-    RunFile file = RunFile::create(run, model, scene, stage_names);
+    const std::vector<RunParameter> parameters{{"time_step", 1e-3, "s", true}, {"rest_duration", 2.5, "s", false}};
+    RunFile file = RunFile::create(run, model, scene, stage_names, parameters);
     for (int k = 0; k < rows; ++k) {
       const std::array<double, 3> stages{1e-6 * k, 2e-6 * k, 3e-6 * k + 1.0};
       SeriesRow row;
@@ -164,8 +166,11 @@ TEST(RunFile, WritesTheDocumentedLayoutAndValues) {
       file.append_series(row);
     }
     file.write_snapshot(first, contacts);
-    file.write_snapshot(second, ContactList{});
+    file.write_snapshot(second, ContactList{}, true);  // as at a stop by signal
+    file.set_status(RunStatus::interrupted);
     EXPECT_EQ(file.snapshot_count(), 2);
+    EXPECT_EQ(file.snapshot_times(), (std::vector<double>{0.5, 1.25}));
+    EXPECT_EQ(file.last_snapshot_step(), 1250);
     EXPECT_EQ(file.series_rows(), rows);
     RunFile moved = std::move(file);  // the moved-to object owns the file; no flush(): the destructor writes
   }
@@ -232,6 +237,9 @@ TEST(RunFile, WritesTheDocumentedLayoutAndValues) {
     d["/series/stage_seconds/update"].push_back(3e-6 * k + 1.0);
   }
   expected["snapshots"] = {snapshot_json(first, contacts), snapshot_json(second, ContactList{})};
+  expected["snapshots"][1]["interrupted"] = 1;
+  expected["status"] = "interrupted";
+  expected["run"] = {{"time_step", {1e-3, "s", "auto"}}, {"rest_duration", {2.5, "s", "scene"}}};
   std::ofstream(expected_path) << expected.dump();  // shortest round-trip form of every double
 
   const std::string command = run_checker(run, expected_path);

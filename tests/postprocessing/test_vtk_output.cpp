@@ -116,7 +116,7 @@ TEST(VtkSeries, ReadBackWithVtkMatchesTheState) {
   const Scene s = make_scene();
   const double h = 0.01;
   {
-    VtkSeries series(dir, s.model, VtkSeriesOptions{h, 0.0});
+    VtkSeries series(dir, s.model, VtkSeriesOptions{h, 0.0, {}});
     series.write(s.state, s.contacts);
     State later = s.state;
     later.time = 1.5;
