@@ -14,7 +14,7 @@ echo "== tests =="
 # Two long polyhedron pours (200 and 300 random polyhedra, 10^4 steps and more each, several CPU
 # minutes since the solver's residual became relative to the impulses) are left out of the gate
 # and run with RUBBLE_LONG_TESTS=1 (README, "Tests"): the gate must finish on a shared 2-core
-# machine. The 98-polyhedra pile at rest with the defaults (about a CPU minute) stays in.
+# machine. The 98-polyhedra pile at rest with the defaults (16 s of CPU) stays in.
 long_tests='TwoHundredPolyhedraPouredIntoABoxComeToRest|PileOf300PolyhedraAtRestWithDefaults'
 ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 900 -E "$long_tests"
 if [ "${RUBBLE_LONG_TESTS:-0}" = 1 ]; then
