@@ -46,9 +46,12 @@ struct Contact {
   double normal_restitution = 0.0;     ///< e_n of the pair's contact law
   double normal_velocity_before = 0.0; ///< U_n at the start of the step, m/s
   double normal_velocity_target = 0.0; ///< b: the solver enforces 0 <= r_n _|_ U_n - b >= 0, m/s
+  /// c = F_c h / (points of the pair), N s: the pull this point may exert (ContactLaw::cohesion);
+  /// the solver enforces 0 <= r_n + c _|_ U_n - b >= 0 and ||r_T|| <= mu (r_n + c). 0 without cohesion.
+  double cohesive_impulse = 0.0;
 
   // The unknown.
-  Vec3 impulse = Vec3::Zero();         ///< local impulse (r_n, r_t, r_s), N s
+  Vec3 impulse = Vec3::Zero();         ///< local impulse (r_n, r_t, r_s), N s (r_n >= -cohesive_impulse)
   ContactStatus status = ContactStatus::open;  ///< after the solve
 };
 

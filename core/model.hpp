@@ -16,10 +16,31 @@ struct Material {
   double density = 0;   ///< kg/m^3
 };
 
-/// The frictional contact law between two materials (seed 001 eqs. 1-2 plus Newton restitution).
+/// The frictional contact law between two materials (Signorini and Coulomb plus Newton restitution).
 struct ContactLaw {
   double friction_coefficient = 0.0;  ///< Coulomb's mu >= 0
   double normal_restitution = 0.0;    ///< Newton's e_n in [0, 1]
+  /// Cohesion: the pull-off force of a pair of bodies in contact, N (>= 0). A cohesive contact may
+  /// pull up to this force before it opens, and Coulomb's cone acts on the normal force including
+  /// it (the cone shifted by the cohesive impulse; nlgs_solver/README.md, "Cohesion").
+  double cohesion = 0.0;
+  /// Work of adhesion W, J/m^2 (>= 0): a size-dependent pull-off force 2 pi W r_eff added to
+  /// `cohesion`, r_eff = r_a r_b / (r_a + r_b) from the grains' volume-equivalent radii (the grain's
+  /// own against a wall): the Derjaguin-Muller-Toporov pull-off force of two spheres (Derjaguin,
+  /// Muller & Toporov 1975); van der Waals cohesion of regolith grains scales the same way,
+  /// linearly with the reduced radius (Scheeres et al. 2010).
+  double work_of_adhesion = 0.0;
+  /// Rolling resistance mu_r >= 0 (dimensionless): the relative rolling of two spheres (or a
+  /// sphere and a wall) is resisted by an angular impulse of norm at most mu_r r_eff r_n
+  /// (nlgs_solver/README.md, "Rolling and twisting resistance"). Sphere contacts only.
+  double rolling_friction = 0.0;
+  /// Twisting resistance mu_t >= 0: the relative spin about the normal is resisted by an angular
+  /// impulse of at most mu_t r_eff r_n. Sphere contacts only.
+  double twisting_friction = 0.0;
+  /// Whether the law has any cohesion.
+  bool cohesive() const { return cohesion > 0.0 || work_of_adhesion > 0.0; }
+  /// Whether the law resists rolling or twisting.
+  bool resists_rotation() const { return rolling_friction > 0.0 || twisting_friction > 0.0; }
 };
 
 /// Contact laws by material pair, symmetric: law(a, b) == law(b, a).
@@ -39,6 +60,18 @@ struct ContactLawTable {
   }
   /// The law between materials a and b.
   const ContactLaw& get(int a, int b) const { return laws[static_cast<std::size_t>(a * material_count + b)]; }
+  /// Whether any pair's law has cohesion (a scene without it pays nothing for it).
+  bool any_cohesive() const {
+    for (const ContactLaw& law : laws)
+      if (law.cohesive()) return true;
+    return false;
+  }
+  /// Whether any pair's law resists rolling or twisting.
+  bool any_resists_rotation() const {
+    for (const ContactLaw& law : laws)
+      if (law.resists_rotation()) return true;
+    return false;
+  }
 };
 
 /// The immutable part of a scene. Per-body data is stored as structure of arrays, indexed by

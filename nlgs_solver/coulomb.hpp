@@ -1,6 +1,6 @@
 #pragma once
 // The Coulomb cone and the natural-map residual of the Signorini-Coulomb law
-// (seed 001 eqs. 1-2; De Saxcé's form as in shared/fclib/README.md).
+// (De Saxcé and Feng 1998; the form FCLib states, Acary et al. 2014).
 // Local vectors are ordered (normal, t, s); r_n >= 0 pushes the bodies apart.
 #include <cmath>
 

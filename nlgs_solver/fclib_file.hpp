@@ -1,6 +1,6 @@
 #pragma once
 // FCLib local frictional-contact problems on disk (Acary, Brémond, Dubois et al., "FCLIB: a
-// collection of discrete 3D frictional contact problems"; layout in shared/fclib/README.md):
+// collection of discrete 3D frictional contact problems"; layout of FCLib 3.0 local problems):
 //   /fclib_local/W/{m,n,nz,nzmax,p,i,x}   sparse W; nz = -2 compressed row, -1 compressed column,
 //                                           nz >= 0 triplet (i = rows, p = columns, nz entries)
 //   /fclib_local/vectors/{q,mu}           q (3 nc), mu (nc)

@@ -74,7 +74,7 @@ struct LocalProblemSolution {
 int polish_solution(const LocalProblem& problem, const LocalProblemOptions& options, std::vector<double>& r,
                     std::vector<double>& u, double& error);
 
-/// The FCLib error measure of (r, u) for the problem (shared/fclib/README.md).
+/// The FCLib error measure of (r, u) for the problem (Acary et al. 2014).
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 
 /// Solves the problem by NLGS from r = 0 with the simulation's sweep and local solver; the error

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -84,9 +85,21 @@ struct CompactProblem {
     Mat3 inverse_inertia;
     double inverse_mass;
   };
+  /// Rolling and twisting resistance of a sphere contact (ContactLaw::rolling_friction,
+  /// twisting_friction): the contact's angular block, solved after its force in each sweep.
+  struct Rotation {
+    double compliance;        // a: relative angular velocity per unit angular impulse (isotropic for spheres), 1/(kg m^2)
+    double twist_bound;       // mu_t r_eff, m: bound on the twisting impulse per unit normal impulse
+    double roll_bound;        // mu_r r_eff, m: bound on the rolling impulse per unit normal impulse
+    double radius;            // r_eff, m: turns the block's residual into velocity units
+    Vec3 impulse;             // (twist about n, roll about t, roll about s), N m s; from zero each step
+  };
+  static constexpr std::uint32_t no_rotation = std::numeric_limits<std::uint32_t>::max();
   std::vector<Point> points;
   std::vector<Body> bodies;
   std::vector<std::size_t> body_id;  // model index of each local body
+  std::vector<std::uint32_t> rotation_of_point;  // per point, index into `rotation` (empty: no such law in the scene)
+  std::vector<Rotation> rotation;
 
   std::size_t size() const { return points.size(); }
   const Mat3& delassus(std::size_t k) const { return points[k].delassus; }
@@ -101,6 +114,52 @@ struct CompactProblem {
     Vec3 u = c.frame.transpose() * relative;
     u.x() -= c.normal_velocity_target;
     return u;
+  }
+
+  /// The angular impulse m of point k's rotation block that the law allows for the current
+  /// relative angular velocity: the one that stops the relative rotation (m - omega / a),
+  /// projected on |m_n| <= mu_t r_eff r_n and ||(m_t, m_s)|| <= mu_r r_eff r_n. For spheres the
+  /// angular compliance is isotropic, so this projection is the exact solution of the block (the
+  /// minimum of the block's kinetic energy over the bounds), as the force's local solver is exact.
+  /// r_n is the normal impulse including cohesion (the shifted r~).
+  Vec3 allowed_rotation_impulse(std::size_t k, const Rotation& rotation) const {
+    const Point& c = points[k];
+    const Vec3 omega = c.frame.transpose() * (bodies[c.b].angular - bodies[c.a].angular);
+    const double normal = std::max(c.impulse.x(), 0.0);
+    Vec3 m = rotation.impulse - omega / rotation.compliance;
+    m.x() = std::clamp(m.x(), -rotation.twist_bound * normal, rotation.twist_bound * normal);
+    const double roll = std::hypot(m.y(), m.z()), roll_limit = rotation.roll_bound * normal;
+    if (roll > roll_limit) {
+      m.y() *= roll_limit / roll;
+      m.z() *= roll_limit / roll;
+    }
+    return m;
+  }
+
+  /// Residual of point k's rotation block, natural map m - P(m - omega / a) in velocity units
+  /// (times a r_eff, as the force's W_nn), and its impulse term; zeros when it has none.
+  std::pair<double, double> rotation_residual(std::size_t k) const {
+    if (rotation_of_point.empty() || rotation_of_point[k] == no_rotation) return {0.0, 0.0};
+    const Rotation& r = rotation[rotation_of_point[k]];
+    const double scale = r.compliance * r.radius;
+    return {(scale * (r.impulse - allowed_rotation_impulse(k, r))).squaredNorm(), (scale * r.impulse).squaredNorm()};
+  }
+
+  /// The sweep's rotation step of point k, right after the force's update (RotatingProblem).
+  void rotation_step(std::size_t k, SweepResult& sums) {
+    if (rotation_of_point[k] == no_rotation) return;
+    Rotation& r = rotation[rotation_of_point[k]];
+    const Vec3 next = allowed_rotation_impulse(k, r);
+    const double scale = r.compliance * r.radius;
+    sums.residual_squared += (scale * (r.impulse - next)).squaredNorm();
+    sums.impulse_squared += (scale * next).squaredNorm();
+    const Point& c = points[k];
+    const Vec3 change = c.frame * (next - r.impulse);  // world angular impulse on b; -change on a
+    r.impulse = next;
+    Body& b = bodies[c.b];
+    Body& a = bodies[c.a];
+    if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * change;
+    if (a.inverse_mass != 0.0) a.angular -= a.inverse_inertia * change;
   }
 
   void apply_impulse_change(std::size_t k, const Vec3& delta) {
@@ -118,6 +177,51 @@ struct CompactProblem {
     }
   }
 };
+
+/// The compact problem with its rotation blocks: what the sweeps see when some contact resists
+/// rolling or twisting (nlgs_sweep then calls resist_rotation after each force). A separate type,
+/// so that the sweeps of a scene without such laws carry no per-contact test for them.
+struct RotatingProblem {
+  CompactProblem& compact;
+  std::size_t size() const { return compact.size(); }
+  const Mat3& delassus(std::size_t k) const { return compact.delassus(k); }
+  double friction_coefficient(std::size_t k) const { return compact.friction_coefficient(k); }
+  Vec3& impulse(std::size_t k) { return compact.impulse(k); }
+  Vec3 local_velocity(std::size_t k) const { return compact.local_velocity(k); }
+  void apply_impulse_change(std::size_t k, const Vec3& delta) { compact.apply_impulse_change(k, delta); }
+  void resist_rotation(std::size_t k, SweepResult& sums) { compact.rotation_step(k, sums); }
+};
+
+/// Rolling and twisting resistance (ContactLaw::rolling_friction, twisting_friction) of the
+/// compact problem's sphere contacts: sphere-sphere and sphere-wall pairs whose law has it (a
+/// polyhedron resists rolling through its faces' several contact points). r_eff = r_a r_b /
+/// (r_a + r_b), a sphere's own radius against a wall; the angular compliance a = 1/I_a + 1/I_b
+/// of the moving spheres (isotropic). The angular impulses start from zero each step.
+void gather_rotations(const Model& model, const SweepPlan& plan, const ContactList& contacts, CompactProblem& out) {
+  out.rotation_of_point.assign(plan.order.size(), CompactProblem::no_rotation);
+  for (std::size_t p = 0; p < plan.order.size(); ++p) {
+    const Contact& c = contacts[plan.order[p]];
+    const std::size_t a = c.id.body_a, b = c.id.body_b;
+    const ContactLaw& law = model.contact_laws.get(model.material[a], model.material[b]);
+    if (!law.resists_rotation()) continue;
+    double compliance = 0.0, radius_sum = 0.0, radius_product = 1.0;
+    int spheres = 0;
+    bool polyhedron = false;
+    for (const std::size_t body : {a, b}) {
+      if (model.is_fixed(body)) continue;
+      if (model.shape_kind[body] != ShapeKind::sphere) polyhedron = true;
+      const double radius = model.bounding_radius[body];  // a sphere's radius
+      compliance += 1.0 / model.principal_inertia[body].x();
+      radius_sum += radius;
+      radius_product *= radius;
+      ++spheres;
+    }
+    if (polyhedron || spheres == 0) continue;
+    const double reduced = spheres == 2 ? radius_product / radius_sum : radius_sum;
+    out.rotation_of_point[p] = static_cast<std::uint32_t>(out.rotation.size());
+    out.rotation.push_back({compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, Vec3::Zero()});
+  }
+}
 
 /// The compact copy: bodies in the plan's Morton order, then the walls in the order the contacts
 /// meet them (a serial pass over the ids), then the bodies' and contact points' data filled
@@ -163,6 +267,7 @@ CompactProblem gather_problem(const Model& model, const State& state, const Swee
                        local[c.id.body_a], local[c.id.body_b]};
     }
   }
+  if (model.contact_laws.any_resists_rotation()) gather_rotations(model, plan, contacts, out);
   return out;
 }
 
@@ -477,12 +582,47 @@ int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const Solve
   return steps;
 }
 
+/// Volume-equivalent radius of a grain, m (infinite for a wall).
+double equivalent_radius(const Model& model, std::size_t body) {
+  if (model.is_fixed(body)) return std::numeric_limits<double>::infinity();
+  return std::cbrt(3.0 * model.volume[body] / (4.0 * std::numbers::pi));
+}
+
+/// Per contact point, c = F_c h / m: the cohesive impulse of its pair's law (ContactLaw::cohesion
+/// plus 2 pi W r_eff) shared by the pair's m points, so that a pair's pull-off force does not
+/// depend on how many points the detection gives a face-on-face contact. Cohesion holds while the
+/// gap is at most 1e-3 of the smaller bounding radius (the overlap recovery's allowed depth): a
+/// bond at rest keeps a gap of round-off size, either sign; a pair pulled apart beyond that range
+/// has broken (a short-range bond, as van der Waals forces are).
+std::vector<double> cohesive_impulses(const Model& model, const ContactList& contacts, double time_step) {
+  std::vector<double> out(contacts.size(), 0.0);
+  // Contacts are sorted by id: the points of a pair are consecutive.
+  for (std::size_t first = 0; first < contacts.size();) {
+    const std::size_t a = contacts[first].id.body_a, b = contacts[first].id.body_b;
+    std::size_t last = first;
+    while (last < contacts.size() && contacts[last].id.body_a == a && contacts[last].id.body_b == b) ++last;
+    const ContactLaw& law = model.contact_laws.get(model.material[a], model.material[b]);
+    if (law.cohesive()) {
+      const double ra = equivalent_radius(model, a), rb = equivalent_radius(model, b);
+      const double reduced = std::isinf(ra) ? rb : std::isinf(rb) ? ra : ra * rb / (ra + rb);
+      const double force = law.cohesion + 2.0 * std::numbers::pi * law.work_of_adhesion * reduced;
+      const double range = 1e-3 * std::min(model.bounding_radius[a], model.bounding_radius[b]);
+      const double per_point = force * time_step / static_cast<double>(last - first);
+      for (std::size_t k = first; k < last; ++k) out[k] = contacts[k].gap <= range ? per_point : 0.0;
+    }
+    first = last;
+  }
+  return out;
+}
+
 }  // namespace
 
 void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
                       const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts) {
   const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(contacts.size());
+  const std::vector<double> cohesive_impulse =
+      model.contact_laws.any_cohesive() ? cohesive_impulses(model, contacts, integrator.time_step) : std::vector<double>();
 #pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     Contact& c = contacts[static_cast<std::size_t>(i)];
@@ -501,6 +641,7 @@ void prepare_contacts(const Model& model, const State& state, const BodyVelociti
     const double free_normal = normal.dot(free_velocity.linear[b] + free_velocity.angular[b].cross(c.arm_b) -
                                           free_velocity.linear[a] - free_velocity.angular[a].cross(c.arm_a));
     c.normal_velocity_target = normal_velocity_target(c, free_normal, integrator);
+    c.cohesive_impulse = cohesive_impulse.empty() ? 0.0 : cohesive_impulse[static_cast<std::size_t>(i)];
     if (!options.warm_start) c.impulse = Vec3::Zero();
   }
 }
@@ -620,8 +761,9 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   const auto start = Clock::now();
   // Only a polish works on the ContactList and needs the world inverse inertias as an array (the
   // compact copy computes its own): when none can run, they are not made (72 bytes a body).
+  // Nor with rolling or twisting resistance: the polish knows the forces' law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
-                          options.polish_attempts_per_step > 0;
+                          options.polish_attempts_per_step > 0 && !model.contact_laws.any_resists_rotation();
   const std::vector<Mat3> inverse_inertia = may_polish ? world_inverse_inertias(model, state) : std::vector<Mat3>();
   BodyCoupledProblem problem{model, contacts, velocity, inverse_inertia};
 
@@ -665,12 +807,19 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   if (free_norm_squared == 0.0) free_norm_squared = all_norm_squared;
   // Warm start: the velocities must include the starting impulses (inside the cone), applied in
   // the sweeps' order and concurrency (visit_groups).
+  // Cohesion (ContactLaw::cohesion): the sweeps solve for the shifted impulse r~ = r + c e_n in
+  // the plain Signorini-Coulomb cone, the constant -c e_n being part of the free motion; the
+  // contacts hold r~ until the end of the solve (the polish works on the same shifted problem).
   visit_groups(plan, parallel, [&](std::size_t g) {
     const auto [first, last] = group_points(g);
     for (std::size_t p = first; p < last; ++p) {
-      Vec3& r = compact.points[p].impulse;
-      r = project_onto_coulomb_cone(r, compact.points[p].friction_coefficient);
-      if (r != Vec3::Zero()) compact.apply_impulse_change(p, r);
+      CompactProblem::Point& point = compact.points[p];
+      const double cohesive_impulse = contacts[plan.order[p]].cohesive_impulse;
+      Vec3& r = point.impulse;
+      r.x() += cohesive_impulse;
+      r = project_onto_coulomb_cone(r, point.friction_coefficient);
+      const Vec3 applied(r.x() - cohesive_impulse, r.y(), r.z());
+      if (applied != Vec3::Zero()) compact.apply_impulse_change(p, applied);
     }
   });
 
@@ -682,8 +831,11 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   if (!contacts.empty()) {
     for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
       const auto sweep_start = Clock::now();
+      RotatingProblem rotating{compact};
       const SweepResult sweep =
-          planned_sweep(compact, plan, positions, options.relaxation, parallel, group_result, group_seconds);
+          compact.rotation.empty()
+              ? planned_sweep(compact, plan, positions, options.relaxation, parallel, group_result, group_seconds)
+              : planned_sweep(rotating, plan, positions, options.relaxation, parallel, group_result, group_seconds);
       if (parallel) {
         // When the threaded sweep took longer than its work on one thread, the threads waited for
         // cores busy with other processes: sweep serially for the rest of the step. Both paths
@@ -696,8 +848,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
         stats.converged = true;
         break;
       }
-      if (options.polish_after > 0 && stats.iterations == next_polish && contacts.size() <= options.polish_max_contacts &&
-          stats.polish_attempts < options.polish_attempts_per_step) {
+      if (may_polish && stats.iterations == next_polish && stats.polish_attempts < options.polish_attempts_per_step) {
         ++stats.polish_attempts;
         bool polished = false;
         scatter_problem(model, plan, compact, contacts, velocity, parallel);
@@ -734,6 +885,9 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
       const Vec3& r = point.impulse;
       group_sum[g] += natural_map(r, compact.local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
       group_all[g] += (point.delassus(0, 0) * r).squaredNorm();
+      const auto [spin_residual, spin_impulse] = compact.rotation_residual(p);
+      group_sum[g] += spin_residual;
+      group_all[g] += spin_impulse;
       if (r.x() > 0.0) ++group_active[g];
       contacts[plan.order[p]].status = r.x() <= 0.0 ? ContactStatus::open
                                        : tangential_norm(r) >= point.friction_coefficient * r.x() * (1.0 - 1e-9)
@@ -749,6 +903,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   }
   const double scale_squared = free_norm_squared + impulse_squared;
   stats.residual = scale_squared > 0.0 ? std::sqrt(residual_squared / scale_squared) : std::sqrt(residual_squared);
+  for (Contact& c : contacts) c.impulse.x() -= c.cohesive_impulse;  // back from r~ to r
   stats.sweep_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return stats;
 }

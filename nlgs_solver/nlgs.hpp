@@ -1,6 +1,6 @@
 #pragma once
 // Stage 5 of the step: the frictional contact problem of the active contacts, solved by
-// nonlinear Gauss-Seidel (NLGS, seed 001 section 2.1): contact after contact, the 3x3 local
+// nonlinear Gauss-Seidel (NLGS; Jean 1999): contact after contact, the 3x3 local
 // problem is solved exactly with the other contacts' impulses frozen, and the two bodies'
 // velocities are updated at once, so no global matrix is assembled.
 #include <cstddef>

@@ -7,6 +7,9 @@
 //   double friction_coefficient(std::size_t k) const;
 //   Vec3& impulse(std::size_t k);                 r_k
 //   void apply_impulse_change(std::size_t k, const Vec3& delta);  keeps later u_j consistent
+// and optionally
+//   void resist_rotation(std::size_t k, SweepResult& sums);  the contact's rolling and twisting
+//                                                            block, solved right after its force
 #include <cmath>
 #include <span>
 
@@ -41,6 +44,7 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     r = next;
     result.impulse_squared += (W(0, 0) * next).squaredNorm();
     problem.apply_impulse_change(k, delta);
+    if constexpr (requires { problem.resist_rotation(k, result); }) problem.resist_rotation(k, result);
   }
   return result;
 }

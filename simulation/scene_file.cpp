@@ -717,19 +717,26 @@ class SceneParser {
     ContactLaw law;
     law.friction_coefficient = entry.number("friction", non_negative());
     law.normal_restitution = entry.number_or("restitution", 0.0, closed(0.0, 1.0));
+    law.cohesion = entry.number_or("cohesion", 0.0, non_negative());
+    law.work_of_adhesion = entry.number_or("work_of_adhesion", 0.0, non_negative());
+    law.rolling_friction = entry.number_or("rolling_friction", 0.0, non_negative());
+    law.twisting_friction = entry.number_or("twisting_friction", 0.0, non_negative());
     return law;
   }
 
   void parse_contact_laws() {
     const int n = static_cast<int>(scene_.model.materials.size());
     if (const auto fallback = root_.optional_table("default_contact_law")) {
-      fallback->allow_only({"friction", "restitution"}, "in [default_contact_law]");
+      fallback->allow_only({"friction", "restitution", "cohesion", "work_of_adhesion", "rolling_friction", "twisting_friction"},
+                          "in [default_contact_law]");
       default_law_ = parse_law(*fallback);
     }
     scene_.model.contact_laws.reset(n, default_law_.value_or(ContactLaw{}));
     law_defined_.assign(static_cast<std::size_t>(n * n), false);
     for (const TableReader& entry : root_.tables("contact_laws")) {
-      entry.allow_only({"materials", "friction", "restitution"}, "in [[contact_laws]]");
+      entry.allow_only({"materials", "friction", "restitution", "cohesion", "work_of_adhesion", "rolling_friction",
+                        "twisting_friction"},
+                       "in [[contact_laws]]");
       const toml::node* node = entry.get("materials");
       if (!node) entry.missing("materials", "a pair of material names, e.g. [\"rock\", \"rock\"]");
       const auto* array = node->as_array();
@@ -1383,19 +1390,19 @@ std::string default_scene_toml(DefaultScene variant) {
     };
     replace("the built-in default scene (`rubble run` without a scene file).",
             "the built-in default scene's polyhedra variant (`rubble run --default-scene polyhedra`).");
-    replace("# The accretion study (seed 001): 10^3 spheres of diameter 7.5-10 m,",
-            "# The accretion study (seed 001): 10^3 random convex polyhedra (CGAL hulls of 10-70 points on a\n"
+    replace("# The accretion study (the LMGC90 accretion paper): 10^3 spheres of diameter 7.5-10 m,",
+            "# The accretion study (the LMGC90 accretion paper): 10^3 random convex polyhedra (CGAL hulls of 10-70 points on a\n"
             "# sphere, elongation and platyness in [0.5, 1]) of circumscribed diameter 7.5-10 m,");
     replace("name = \"accretion-1000\"", "name = \"accretion-1000-polyhedra\"");
     replace("directory = \"accretion-1000-output\"", "directory = \"accretion-1000-polyhedra-output\"");
     replace("type = \"cubic_grid\"\n", "type = \"cubic_grid\"\nshape = \"polyhedron\"\n");
     return text;
   }
-  // The accretion study's smallest classic case (seed 001, /work/shared/accretion-study.md) run
+  // The accretion study's smallest classic case (the LMGC90 accretion paper) run
   // to rest: about 3000 steps, a minute or two of CPU on 2 cores (examples/README.md). The number
   // of grains (cells_per_side^3) and the rest criterion are the knobs that set the run time.
   return R"(# rubble scene file: the built-in default scene (`rubble run` without a scene file).
-# The accretion study (seed 001): 10^3 spheres of diameter 7.5-10 m, uniform in volume fraction,
+# The accretion study (the LMGC90 accretion paper): 10^3 spheres of diameter 7.5-10 m, uniform in volume fraction,
 # one per cell of a cubic grid of mesh d_max = 10 m, at rest, collapse under their own gravity
 # (Barnes-Hut tree) into a rubble pile; no friction, no restitution. The run stops when the
 # grains are at rest. Reference: docs/scene-file.md. SI units throughout.
@@ -1547,6 +1554,10 @@ std::string scene_to_toml(const Scene& scene) {
       out << "\n[[contact_laws]]\nmaterials = [" << material_name(a) << ", " << material_name(b) << "]\n";
       out << "friction = " << format_number(law.friction_coefficient) << "\n";
       out << "restitution = " << format_number(law.normal_restitution) << "\n";
+      if (law.cohesion > 0.0) out << "cohesion = " << format_number(law.cohesion) << "\n";
+      if (law.work_of_adhesion > 0.0) out << "work_of_adhesion = " << format_number(law.work_of_adhesion) << "\n";
+      if (law.rolling_friction > 0.0) out << "rolling_friction = " << format_number(law.rolling_friction) << "\n";
+      if (law.twisting_friction > 0.0) out << "twisting_friction = " << format_number(law.twisting_friction) << "\n";
     }
   }
 

@@ -269,6 +269,17 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
   if (!(law.normal_restitution >= 0.0 && law.normal_restitution <= 1.0)) {
     throw std::invalid_argument(fmt::format("restitution: expected a number in [0, 1], got {}", law.normal_restitution));
   }
+  if (!(law.cohesion >= 0.0) || !std::isfinite(law.cohesion)) {
+    throw std::invalid_argument(fmt::format("cohesion: expected a finite number >= 0 (N), got {}", law.cohesion));
+  }
+  if (!(law.work_of_adhesion >= 0.0) || !std::isfinite(law.work_of_adhesion)) {
+    throw std::invalid_argument(fmt::format("work_of_adhesion: expected a finite number >= 0 (J/m^2), got {}", law.work_of_adhesion));
+  }
+  for (const auto& [name, value] : {std::pair{"rolling_friction", law.rolling_friction}, std::pair{"twisting_friction", law.twisting_friction}}) {
+    if (!(value >= 0.0) || !std::isfinite(value)) {
+      throw std::invalid_argument(fmt::format("{}: expected a finite number >= 0, got {}", name, value));
+    }
+  }
   scene_.model.contact_laws.set(material_a, material_b, law);
   scene_modified_ = true;
 }

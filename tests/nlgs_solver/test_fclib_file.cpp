@@ -167,7 +167,7 @@ TEST(FclibFile, BadFilesGiveMessagesNamingFileAndDataset) {
 
 // ---- the shared problems
 
-// Contacts from shared/fclib/README.md; trace(W), sum_ij W_ij (i mod 7)(j mod 5) and |q| from an
+// Contacts as listed in the FCLib problem set's README; trace(W), sum_ij W_ij (i mod 7)(j mod 5) and |q| from an
 // independent read with h5py + scipy.sparse.csr_matrix; symmetric: W = W^T to round-off (the
 // Capsules operator is not: its asymmetry is 1.3e-3 of max|W| in the file itself).
 struct SharedProblem {

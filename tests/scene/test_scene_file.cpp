@@ -267,6 +267,45 @@ backend = ")") + backend + "\"\n";
   }
 }
 
+// Cohesion keys of [[contact_laws]] (docs/scene-file.md): parsed into ContactLaw, written back
+// (and only when set, so scenes without cohesion read as before), and a negative value refused at
+// its line with the key's name.
+TEST(ParseScene, CohesionKeysParseRoundTripAndAreRangeChecked) {
+  const auto scene_with = [](const std::string& cohesion) {
+    return std::string(R"([time]
+dt = 1
+end_time = 100
+[[materials]]
+name = "m"
+density = 1
+[[contact_laws]]
+materials = ["m", "m"]
+friction = 0.3
+work_of_adhesion = 0.25
+cohesion = )") + cohesion + R"(
+[[bodies]]
+shape = "sphere"
+radius = 0.5
+position = [0.0, 0.0, 0.0]
+)";
+  };
+  const Scene scene = parse_scene(scene_with("2.5"), "cohesive.toml");
+  EXPECT_EQ(scene.model.contact_laws.get(0, 0).cohesion, 2.5);
+  EXPECT_EQ(scene.model.contact_laws.get(0, 0).work_of_adhesion, 0.25);
+  const Scene again = parse_scene(scene_to_toml(scene), "again.toml");
+  EXPECT_EQ(again.model.contact_laws.get(0, 0).cohesion, 2.5);
+  EXPECT_EQ(again.model.contact_laws.get(0, 0).work_of_adhesion, 0.25);
+  const Scene plain = parse_scene(two_grains_in_a_box, "two.toml");
+  EXPECT_EQ(scene_to_toml(plain).find("cohesion"), std::string::npos);
+  try {
+    parse_scene(scene_with("-1"), "negative.toml");
+    FAIL() << "cohesion = -1 was accepted";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.key, "contact_laws[0].cohesion") << error.what();
+    EXPECT_EQ(error.line, 11);
+  }
+}
+
 TEST(DefaultScene, IsTheThousandSphereAccretionToRest) {
   const Scene scene = default_scene();
   EXPECT_EQ(scene.name, "accretion-1000");
@@ -341,7 +380,7 @@ TEST(Examples, EveryExampleFileParses) {
   EXPECT_GE(count, 2u);
 }
 
-// examples/accretion/: the study's sets (seed 001), each file what its name says: spheres-N,
+// examples/accretion/: the study's sets (the LMGC90 accretion paper), each file what its name says: spheres-N,
 // polyhedra-N (N grains on the cubic grid of mesh 10 m), spheres-3375-muM (friction M), all with
 // density 5164, diameters in [7.5, 10] m, mu = 0 unless named, dt = "auto", until = "rest".
 TEST(Examples, AccretionStudyFilesAreTheirCases) {

@@ -1,0 +1,134 @@
+// Rolling and twisting resistance (ContactLaw::rolling_friction, twisting_friction) of sphere
+// contacts against closed forms: a solid sphere (I = 2/5 m r^2) on a plane feels a resisting
+// angular impulse of at most mu_r r N h (rolling) and mu_t r N h (twisting) per step.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "support/test_scene.hpp"
+
+namespace rubble {
+namespace {
+
+using testing::TestScene;
+constexpr double g = 9.81;
+constexpr double radius = 0.05;  // m
+
+/// A sphere at rest on a plane through the origin tilted by `alpha` about x, Coulomb mu = 0.8
+/// (enough to roll without slipping below tan(alpha) = 2.8 mu / 1 for a rolling sphere) and
+/// rolling friction `mu_r`. Returns the downhill velocity after `seconds` and the displacement.
+struct Roll {
+  double velocity = 0.0;      ///< m/s, downhill
+  double displacement = 0.0;  ///< m
+  double spin = 0.0;          ///< rad/s, about the axis of rolling
+};
+Roll roll_down(double alpha, double mu_r, double seconds) {
+  TestScene s(2500.0, 0.8, 0.0);
+  s.uniform_gravity(g);
+  s.options.integrator.time_step = 1e-3;
+  ContactLaw law{0.8, 0.0};
+  law.rolling_friction = mu_r;
+  s.model.contact_laws.reset(1, law);
+  const Quat tilt(Eigen::AngleAxisd(alpha, Vec3::UnitX()));
+  const Vec3 normal = tilt * Vec3::UnitZ();
+  s.plane(Vec3::Zero(), normal);
+  const Vec3 start = radius * normal;
+  const int ball = s.sphere(radius, start);
+  s.run(seconds);
+  const auto b = static_cast<std::size_t>(ball);
+  const Vec3 downhill = -(tilt * Vec3::UnitY());
+  return {s.state.velocity[b].dot(downhill), (s.state.position[b] - start).norm(),
+          s.state.angular_velocity[b].dot(normal.cross(downhill))};
+}
+
+// Reference: at rest, friction f = m g sin(alpha) holds the sphere, and its torque f r must be
+// balanced by the rolling resistance, at most mu_r r m g cos(alpha): the sphere stays below
+// tan(alpha) = mu_r. Above, rolling without slipping with the resisting torque mu_r r N:
+// a = g (sin(alpha) - mu_r cos(alpha)) / (1 + I / (m r^2)) = 5/7 g (sin(alpha) - mu_r cos(alpha)).
+// Pass (mu_r = 0.1): at tan(alpha) = 0.99 mu_r the sphere moves < 1e-9 m in 1 s; at 1.01 mu_r it
+// rolls (> 1e-6 m); at tan(alpha) = 3 mu_r the velocity after 0.5 s is 5/7 g (...) t within 1 %
+// and the spin is v / r within 1e-6 (rolling, not slipping).
+TEST(RotationResistance, SphereOnAnInclineStopsBelowTanAlphaEqualMuR) {
+  const double mu_r = 0.1;
+  const Roll below = roll_down(std::atan(0.99 * mu_r), mu_r, 1.0);
+  const Roll above = roll_down(std::atan(1.01 * mu_r), mu_r, 1.0);
+  const double alpha = std::atan(3 * mu_r);
+  const Roll rolling = roll_down(alpha, mu_r, 0.5);
+  const double expected = 5.0 / 7.0 * g * (std::sin(alpha) - mu_r * std::cos(alpha)) * 0.5;
+  std::cout << "rolling resistance: 0.99 mu_r moved " << below.displacement << " m, 1.01 mu_r " << above.displacement
+            << " m; at 3 mu_r v = " << rolling.velocity << " m/s (closed form " << expected << "), spin r / v = "
+            << rolling.spin * radius / rolling.velocity << "\n";
+  EXPECT_LT(below.displacement, 1e-9);
+  EXPECT_GT(above.displacement, 1e-6);
+  EXPECT_NEAR(rolling.velocity, expected, 0.01 * expected);
+  EXPECT_NEAR(rolling.spin * radius, rolling.velocity, 1e-6 * rolling.velocity);
+}
+
+// Reference: a sphere rolling on a level plane at v0 is slowed by the resisting torque
+// mu_r r m g: a = -5/7 mu_r g, so it stops at t* = 7 v0 / (5 mu_r g) after 7 v0^2 / (10 mu_r g).
+// Pass (v0 = 1 m/s, mu_r = 0.05, t* = 2.854 s): v(1 s) = v0 - 5/7 mu_r g within 1 %; after 4 s it
+// is at rest (< 1e-9 m/s) and has travelled the closed-form distance within 1 %.
+TEST(RotationResistance, RollingSphereStopsAtTheClosedFormDistance) {
+  const double mu_r = 0.05, v0 = 1.0;
+  auto run = [&](double seconds, double& distance) {
+    TestScene s(2500.0, 0.8, 0.0);
+    s.uniform_gravity(g);
+    s.options.integrator.time_step = 1e-3;
+    ContactLaw law{0.8, 0.0};
+    law.rolling_friction = mu_r;
+    s.model.contact_laws.reset(1, law);
+    s.plane(Vec3::Zero(), Vec3::UnitZ());
+    const int ball = s.sphere(radius, Vec3(0, 0, radius), Vec3(v0, 0, 0));
+    const auto b = static_cast<std::size_t>(ball);
+    s.state.angular_velocity[b] = Vec3(0, v0 / radius, 0);  // rolling: v = omega x (-r e_z)
+    s.run(seconds);
+    distance = s.state.position[b].x();
+    return s.state.velocity[b].x();
+  };
+  double d1 = 0.0, d4 = 0.0;
+  const double v1 = run(1.0, d1);
+  const double v4 = run(4.0, d4);
+  const double expected_v1 = v0 - 5.0 / 7.0 * mu_r * g;
+  const double expected_distance = 7.0 * v0 * v0 / (10.0 * mu_r * g);
+  std::cout << "rolling to a stop: v(1 s) " << v1 << " m/s (closed form " << expected_v1 << "), v(4 s) " << v4
+            << " m/s, distance " << d4 << " m (closed form " << expected_distance << ")\n";
+  EXPECT_NEAR(v1, expected_v1, 0.01 * expected_v1);
+  EXPECT_LT(std::abs(v4), 1e-9);
+  EXPECT_NEAR(d4, expected_distance, 0.01 * expected_distance);
+}
+
+// Reference: a sphere spinning at omega0 about the normal of a level plane is slowed by the
+// twisting torque mu_t r m g: I d(omega)/dt = -mu_t r m g, omega(t) = omega0 - 5 mu_t g t / (2 r),
+// at rest after t* = 2 r omega0 / (5 mu_t g). Pass (omega0 = 20 rad/s, mu_t = 0.1, t* = 0.408 s):
+// omega(0.2 s) within 1 % of the closed form; at rest after 0.5 s (< 1e-9 rad/s); the centre
+// does not move (< 1e-9 m).
+TEST(RotationResistance, SpinningSphereStopsAtTheTwistingRate) {
+  const double mu_t = 0.1, omega0 = 20.0;
+  auto run = [&](double seconds, double& moved) {
+    TestScene s(2500.0, 0.8, 0.0);
+    s.uniform_gravity(g);
+    s.options.integrator.time_step = 1e-3;
+    ContactLaw law{0.8, 0.0};
+    law.twisting_friction = mu_t;
+    s.model.contact_laws.reset(1, law);
+    s.plane(Vec3::Zero(), Vec3::UnitZ());
+    const int ball = s.sphere(radius, Vec3(0, 0, radius));
+    const auto b = static_cast<std::size_t>(ball);
+    s.state.angular_velocity[b] = Vec3(0, 0, omega0);
+    s.run(seconds);
+    moved = (s.state.position[b] - Vec3(0, 0, radius)).norm();
+    return s.state.angular_velocity[b].z();
+  };
+  double moved = 0.0, moved_end = 0.0;
+  const double at_02 = run(0.2, moved);
+  const double at_05 = run(0.5, moved_end);
+  const double expected = omega0 - 5.0 * mu_t * g * 0.2 / (2.0 * radius);
+  std::cout << "twisting: omega(0.2 s) " << at_02 << " rad/s (closed form " << expected << "), omega(0.5 s) " << at_05
+            << " rad/s, centre moved " << moved_end << " m\n";
+  EXPECT_NEAR(at_02, expected, 0.01 * expected);
+  EXPECT_LT(std::abs(at_05), 1e-9);
+  EXPECT_LT(moved_end, 1e-9);
+}
+
+}  // namespace
+}  // namespace rubble
