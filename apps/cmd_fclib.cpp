@@ -1,5 +1,5 @@
 // `rubble fclib FILE.hdf5 [--tolerance 1e-8] [--max-iterations N] [--out SOL.h5] ...`
-// Reads an FCLib local frictional-contact problem (shared/fclib/README.md), solves it from r = 0
+// Reads an FCLib local frictional-contact problem (FCLib 3.0 layout, Acary et al. 2014), solves it from r = 0
 // with the simulation's NLGS sweep and local solver (plus the optional Newton polish), writes r
 // and u to SOL.h5 (datasets `r`, `u`) and prints one JSON line: file, contacts, iterations, error
 // (||F||/||q||, natural map), seconds, converged.

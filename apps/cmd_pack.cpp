@@ -79,7 +79,7 @@ void register_pack_command(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"cubic-grid", "cloud", "box"}));
   pack->add_option("--n", args->count, "Number of grains (cubic-grid: a cube k^3)")->check(CLI::Range(1.0, 1e8));
-  pack->add_option("--shape", args->shape, "spheres, polyhedra (random convex, seed 001) or mix")
+  pack->add_option("--shape", args->shape, "spheres, polyhedra (random convex, as in the LMGC90 accretion paper) or mix")
       ->check(CLI::IsMember({"spheres", "polyhedra", "mix"}));
   pack->add_option("--polyhedron-fraction", args->polyhedron_fraction, "mix: share of polyhedra by number")
       ->check(CLI::Range(0.0, 1.0));

@@ -1,5 +1,5 @@
 #pragma once
-// The common plane of two convex polyhedra (Cundall 1988; seed 001 section 2.2): the plane that
+// The common plane of two convex polyhedra (Cundall 1988; the LMGC90 accretion paper, section 2.2): the plane that
 // best separates them. For a unit normal n (from A to B) the separation along n is
 //   f(n) = min_{y in B} n.y - max_{x in A} n.x,
 // and the common plane is the maximiser of f over unit vectors. When the bodies are apart the

@@ -1,5 +1,5 @@
 #pragma once
-// Metrics of a granular aggregate at one instant (seed 001 section 3): energies and momenta,
+// Metrics of a granular aggregate at one instant (the LMGC90 accretion paper section 3): energies and momenta,
 // coordination number with and without rattlers, aggregate diameter, packing fraction, contact
 // statistics. The exact definitions are in docs/postprocessing.md; every function takes the
 // immutable Model and one State (plus the contacts where needed), so it runs during a run or on a

@@ -1,6 +1,6 @@
 #pragma once
 // `rubble post`: from a run file to metrics (CSV + HDF5), ParaView files and PNG plots, and from
-// several runs to the study's comparison plots (seed 001 figures 3-4). Every file written is listed
+// several runs to the study's comparison plots (the LMGC90 accretion paper figures 3-4). Every file written is listed
 // in docs/postprocessing.md.
 #include <filesystem>
 #include <iosfwd>

@@ -1,5 +1,5 @@
 #pragma once
-// Random convex polyhedra as in the accretion study (seed 001 sec. 3): n_v points drawn on the
+// Random convex polyhedra as in the accretion study (the LMGC90 accretion paper sec. 3): n_v points drawn on the
 // unit sphere (n_v uniform in [min_vertices, max_vertices]), axes scaled by the elongation and
 // platyness ratios, convex hull (CGAL), nearly coplanar facets merged, rescaled so that the
 // circumscribed (smallest enclosing) sphere has the requested diameter.

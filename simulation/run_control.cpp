@@ -52,7 +52,7 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
     case GravitySettings::Kind::self: {
       // Escape velocity from the cloud's edge, sqrt(2GM/R): no grain falling from rest inside the
       // cloud gets faster (the potential well of a uniform sphere is 3GM/2R deep at its centre,
-      // which gives only sqrt(GM/R)). Characteristic time 1/sqrt(G rho) (seed 001).
+      // which gives only sqrt(GM/R)). Characteristic time 1/sqrt(G rho) (the LMGC90 accretion paper).
       const double G = gravity.self_gravity.G;
       scales.reference_velocity = std::sqrt(2.0 * G * scales.total_mass / scales.cloud_radius);
       scales.characteristic_time = scales.mean_density > 0.0 ? 1.0 / std::sqrt(G * scales.mean_density) : infinity;

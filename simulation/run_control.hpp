@@ -27,7 +27,7 @@ struct SceneScales {
   /// sqrt(2 G M / R) for self-gravity, sqrt(2 g H) (H: height of the grains along g plus d_min)
   /// for a uniform field, else the largest initial speed.
   double reference_velocity = 0.0;
-  /// T, s: the gravitational time: 1/sqrt(G rho) for self-gravity (seed 001's characteristic
+  /// T, s: the gravitational time: 1/sqrt(G rho) for self-gravity (the LMGC90 accretion paper's characteristic
   /// time), sqrt(2 H / g) for a uniform field, d_min / v_ref without gravity.
   double characteristic_time = 0.0;
 };
@@ -39,7 +39,7 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
 /// Fraction of d_min a grain may travel in one step at the reference velocity (dt = "auto").
 inline constexpr double auto_step_travel_fraction = 0.01;
 /// Fraction of the characteristic time one step may last (dt = "auto"): the gravity integration
-/// alone is accurate for h well below T (seed 000 allows h < T/2).
+/// alone is accurate for h well below T (the EPSC 2018 presentation of a gravitational-aggregate code allows h < T/2).
 inline constexpr double auto_step_time_fraction = 0.01;
 
 /// The automatic time step and the numbers it came from.

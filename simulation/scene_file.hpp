@@ -42,7 +42,7 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name);
 enum class DefaultScene { spheres, polyhedra };
 
 /// The built-in scene `rubble run` uses without a scene file: the accretion of a thousand
-/// spheres (or polyhedra) under self-gravity, run until they are at rest (seed 001's set-up).
+/// spheres (or polyhedra) under self-gravity, run until they are at rest (the LMGC90 accretion paper's set-up).
 /// Equal to parse_scene(default_scene_toml(variant), ...).
 Scene default_scene(DefaultScene variant = DefaultScene::spheres);
 

@@ -1,4 +1,4 @@
-// The acceptance test of an accretion run (seed 001's set-up, smallest n_s): 125 spheres
+// The acceptance test of an accretion run (the LMGC90 accretion paper's set-up, smallest n_s): 125 spheres
 // of diameter 7.5-10 m, uniform in volume fraction, one per cell of a cubic grid of mesh 10 m,
 // at rest, Barnes-Hut self-gravity, mu = 0, e = 0, dt = "auto", until = "rest". The run must stop
 // at rest (not at its end time) with the grains forming one aggregate:

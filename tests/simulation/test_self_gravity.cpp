@@ -1,5 +1,5 @@
 // Self-gravity coupled to contacts: a cold collapse of 10^3 spheres (the accretion study's
-// cloud, seed 001) in which contacts (e_n = 0) can only dissipate, so the total energy
+// cloud, the LMGC90 accretion paper) in which contacts (e_n = 0) can only dissipate, so the total energy
 // (kinetic + gravitational, the latter by an exact direct sum) must never grow.
 #include <gtest/gtest.h>
 
