@@ -26,6 +26,13 @@ namespace fs = std::filesystem;
 /// shuffled and deflated at level 4: snapshots shrink to about a third (docs/output-format.md,
 /// "Compression"; levels above 4 gain a few percent for twice the time).
 constexpr hdf5::Storage storage{true, 4, true};
+/// The columns that grow row by row (/series, /snapshot_time, /snapshot_step) keep the checksum but
+/// are not compressed: a compressed chunk rewritten with more rows changes size and moves in the
+/// file, so a run killed between two flushes (SIGKILL, power loss) left an index pointing at space
+/// since reused, read back as a Fletcher-32 error; uncompressed chunks are rewritten in place and a
+/// killed run's file stays readable up to its last flush (tests/apps/one_run_per_folder.sh). They
+/// are a few doubles a step, so compression would save little.
+constexpr hdf5::Storage appended_storage{true, 0, false};
 
 /// Writes the `units` attribute of dataset `name` of `parent` (docs/output-format.md: SI, "1" for
 /// dimensionless numbers, counts and indices).
@@ -357,26 +364,26 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   impl->series_group = hdf5::create_group(root, "series", path);
   const hid_t series = impl->series_group.get();
   for (const ColumnSpec& column : basic_columns()) {
-    impl->columns.emplace_back(series, column.name, column.type, series_chunk_rows, path, storage);
+    impl->columns.emplace_back(series, column.name, column.type, series_chunk_rows, path, appended_storage);
     units(series, column.name, column.units, path);
   }
   for (std::size_t c = 0; c < conservation_columns.size(); ++c) {
-    impl->columns.emplace_back(series, conservation_columns[c], H5T_NATIVE_DOUBLE, series_chunk_rows, path, storage);
+    impl->columns.emplace_back(series, conservation_columns[c], H5T_NATIVE_DOUBLE, series_chunk_rows, path, appended_storage);
     units(series, conservation_columns[c], conservation_units[c], path);
   }
   impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
   for (std::string_view name : stage_names) {
     impl->stage_names.emplace_back(name);
     impl->stage_columns.emplace_back(impl->stage_group.get(), std::string(name), H5T_NATIVE_DOUBLE, series_chunk_rows,
-                                     path, storage);
+                                     path, appended_storage);
     units(impl->stage_group.get(), std::string(name), "s", path);
   }
   hdf5::write_attribute(impl->stage_group.get(), "stage_order", std::span<const std::string>(impl->stage_names), path);
   impl->stage_seconds.resize(stage_names.size());
   impl->snapshots_group = hdf5::create_group(root, "snapshots", path);
-  impl->snapshot_time_column.emplace(root, "snapshot_time", H5T_NATIVE_DOUBLE, series_chunk_rows, path, storage);
+  impl->snapshot_time_column.emplace(root, "snapshot_time", H5T_NATIVE_DOUBLE, series_chunk_rows, path, appended_storage);
   units(root, "snapshot_time", "s", path);
-  impl->snapshot_step_column.emplace(root, "snapshot_step", H5T_NATIVE_INT64, series_chunk_rows, path, storage);
+  impl->snapshot_step_column.emplace(root, "snapshot_step", H5T_NATIVE_INT64, series_chunk_rows, path, appended_storage);
   units(root, "snapshot_step", "1", path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));

@@ -217,6 +217,12 @@ def test_scene_from_dict_with_generators_and_contact_laws():
     assert scene.grain_count == 27 and scene.gravity == "self"
     assert set(scene.material_ids) == {1}
     sim = rubble.Simulation(scene)
-    assert sim.contact_law("rock", "rock") == {"friction": 0.6, "restitution": 0.1}
+    law = sim.contact_law("rock", "rock")
+    assert (law["friction"], law["restitution"], law["cohesion"], law["rolling_friction"]) == (0.6, 0.1, 0.0, 0.0)
     assert sim.contact_law("ice", "rock")["friction"] == 0.2
     assert sim.contact_law(1, 1)["friction"] == 0.05
+    sim.set_contact_law("rock", "rock", cohesion=2.5, rolling_friction=0.05)
+    law = sim.contact_law("rock", "rock")
+    assert (law["friction"], law["cohesion"], law["rolling_friction"], law["twisting_friction"]) == (0.6, 2.5, 0.05, 0.0)
+    with pytest.raises(ValueError, match="cohesion"):
+        sim.set_contact_law("rock", "rock", cohesion=-1.0)
