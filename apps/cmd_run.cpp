@@ -395,8 +395,9 @@ void register_run_command(CLI::App& app) {
                   "or end_time (run to the end time); also with --resume")
       ->check(CLI::IsMember({"rest", "end_time"}));
   run->add_option("--rest-speed", args->rest_speed,
-                  "Rest: the speed quantile |v| + |w| r must stay below V m/s (default: 5% of the reference velocity "
-                  "sqrt(2GM/R) or sqrt(2gH), docs/scene-file.md)")
+                  "Rest: the speed quantile of |v| + |w| r must stay below V m/s (default: 5% of the free-fall "
+                  "velocity sqrt(2GM/R) under self-gravity, of sqrt(g d_min) under uniform gravity; "
+                  "docs/scene-file.md)")
       ->check(positive)
       ->type_name("V");
   run->add_option("--rest-quantile", args->rest_quantile,
@@ -404,16 +405,17 @@ void register_run_command(CLI::App& app) {
       ->check(number("a number in (0, 1]", [](double v) { return v > 0.0 && v <= 1.0; }))
       ->type_name("Q");
   run->add_option("--rest-coordination-change", args->rest_coordination_change,
-                  "Rest: largest change of the coordination number Z over the rest duration (default 0.02)")
+                  "Rest: largest change of the coordination number Z over the rest duration (default 0.05, and at "
+                  "least 4/N: two contacts)")
       ->check(non_negative)
       ->type_name("DZ");
   run->add_option("--rest-contact-change", args->rest_contact_change,
-                  "Rest: largest fraction of contacts created or broken over the rest duration (default 0.05)")
+                  "Rest: largest fraction of contacts created or broken over the rest duration (default 0.2)")
       ->check(number("a number in [0, 1]", [](double v) { return v >= 0.0 && v <= 1.0; }))
       ->type_name("F");
   run->add_option("--rest-duration", args->rest_duration,
-                  "Rest: how long every rest condition must hold, s (default: one characteristic time "
-                  "1/sqrt(G rho), or sqrt(2H/g) under uniform gravity)")
+                  "Rest: how long every rest condition must hold, s (default: half a characteristic time, "
+                  "0.5/sqrt(G rho) under self-gravity, 0.5 sqrt(2H/g) under uniform gravity)")
       ->check(non_negative)
       ->type_name("T");
   run->callback([args] {
