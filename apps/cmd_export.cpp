@@ -59,6 +59,7 @@ int export_command(const ExportArguments& args) {
     if (scene.run.automatic_time_step && h > 0.0) scene.run.step.integrator.time_step = h;
     scene.run.automatic_time_step = false;
     scene.run.automatic_rest_speed = false;
+    scene.run.automatic_rest_coordination_change = false;
     scene.run.automatic_rest_duration = false;
     if (args.output != "-") {
       scene.run.output.directory = std::filesystem::path(args.output).stem().string() + "-output";

@@ -101,6 +101,7 @@ std::string apply_rest_overrides(const RunArguments& args, Scene& scene, bool& o
       }
       run.automatic_rest_speed = true;
       run.automatic_rest_duration = true;
+      run.automatic_rest_coordination_change = true;
     }
   }
   const bool thresholds = args.rest_speed >= 0.0 || args.rest_quantile >= 0.0 || args.rest_coordination_change >= 0.0 ||
@@ -113,7 +114,10 @@ std::string apply_rest_overrides(const RunArguments& args, Scene& scene, bool& o
     run.automatic_rest_speed = false;
   }
   if (args.rest_quantile >= 0.0) run.rest.quantile = args.rest_quantile;
-  if (args.rest_coordination_change >= 0.0) run.rest.coordination_change = args.rest_coordination_change;
+  if (args.rest_coordination_change >= 0.0) {
+    run.rest.coordination_change = args.rest_coordination_change;
+    run.automatic_rest_coordination_change = false;
+  }
   if (args.rest_contact_change >= 0.0) run.rest.contact_change = args.rest_contact_change;
   if (args.rest_duration >= 0.0) {
     run.rest.duration = args.rest_duration;
@@ -405,8 +409,8 @@ void register_run_command(CLI::App& app) {
       ->check(number("a number in (0, 1]", [](double v) { return v > 0.0 && v <= 1.0; }))
       ->type_name("Q");
   run->add_option("--rest-coordination-change", args->rest_coordination_change,
-                  "Rest: largest change of the coordination number Z over the rest duration (default 0.05, and at "
-                  "least 4/N: two contacts)")
+                  "Rest: largest change of the coordination number Z over the rest duration (default 0.05 "
+                  "sqrt(1000/N) for N grains, and at least 4/N: two contacts)")
       ->check(non_negative)
       ->type_name("DZ");
   run->add_option("--rest-contact-change", args->rest_contact_change,

@@ -209,7 +209,8 @@ std::vector<RunParameter> run_parameters(const Scene& scene, std::int64_t snapsh
   if (run.until_rest) {
     parameters.push_back({"rest_speed", run.rest.speed, "m/s", run.automatic_rest_speed});
     parameters.push_back({"rest_quantile", run.rest.quantile, "1", false});
-    parameters.push_back({"rest_coordination_change", run.rest.coordination_change, "1", false});
+    parameters.push_back(
+        {"rest_coordination_change", run.rest.coordination_change, "1", run.automatic_rest_coordination_change});
     parameters.push_back({"rest_contact_change", run.rest.contact_change, "1", false});
     parameters.push_back({"rest_duration", run.rest.duration, "s", run.automatic_rest_duration});
   }

@@ -120,8 +120,15 @@ TimeStepChoice automatic_time_step(const Model& model, const State& state, const
   return choice;
 }
 
-RestCriterion automatic_rest_criterion(const SceneScales& scales, double speed, double duration) {
+RestCriterion automatic_rest_criterion(const SceneScales& scales, double speed, double duration,
+                                       double coordination_change) {
   RestCriterion criterion;
+  criterion.coordination_change =
+      coordination_change > 0.0 ? coordination_change
+      : scales.grains > 0
+          ? auto_rest_coordination_change *
+                std::sqrt(auto_rest_coordination_grains / static_cast<double>(scales.grains))
+          : auto_rest_coordination_change;
   if (speed > 0.0) {
     criterion.speed = speed;
   } else {

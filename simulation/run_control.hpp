@@ -78,11 +78,17 @@ inline constexpr double auto_rest_speed_fraction = 0.05;
 /// handful of rattlers (grains without neighbours, which the solver's noise keeps jiggling) do not
 /// hold up the run, while 1% of moving grains does (at 200 grains: the 2 fastest may move).
 inline constexpr double auto_rest_quantile = 0.99;
-/// The default bound on the change of the coordination number Z over the rest duration: an
-/// aggregate that still compacts gains contacts (force-bearing Z from 3.85 to 4.71 in the
-/// 1000-sphere accretion between t = 60 and 125 min, issue 18) though its grains are slow. The
-/// watcher's Z counts geometric contacts (rest_contact_gap_fraction), which do not flicker.
+/// The default bound on the change of the coordination number Z over the rest duration, for 1000
+/// grains: an aggregate that still compacts gains contacts (force-bearing Z from 3.85 to 4.71 in
+/// the 1000-sphere accretion between t = 60 and 125 min, issue 18) though its grains are slow. The
+/// watcher's Z counts geometric contacts (rest_contact_gap_fraction); near-contacts at the gap
+/// tolerance still come and go, each moving Z by 2/N, and the sum of N such independent changes
+/// fluctuates as sqrt(N): Z's noise falls as 1/sqrt(N). The automatic bound is therefore
+/// 0.05 sqrt(1000 / N) (0.14 for 125 grains, 0.027 for 3375): in the settled 1000-sphere aggregate
+/// Z moved by 0.034-0.038 within half a characteristic time.
 inline constexpr double auto_rest_coordination_change = 0.05;
+/// The grain count at which the automatic Z bound is auto_rest_coordination_change.
+inline constexpr double auto_rest_coordination_grains = 1000.0;
 /// The default bound on the fraction of contacts created or broken over the rest duration
 /// (|P xor P0| / |P union P0|): rearrangements that leave Z unchanged. Near-contacts at the gap
 /// tolerance come and go with the solver's noise: 1-2% of them between two snapshots 60 s apart
@@ -111,10 +117,13 @@ struct RestCriterion {
   double duration = 0.0;             ///< s of simulated time, >= 0
 };
 
-/// The automatic rest criterion: speed 0.05 v_rest (SceneScales::rest_reference_velocity), duration 0.5 T, the quantile and changes at their
+/// The automatic rest criterion: speed 0.05 v_rest (SceneScales::rest_reference_velocity), duration 0.5 T,
+/// Z bound 0.05 sqrt(1000 / N), the quantile and changes at their
 /// defaults; `speed` or `duration` > 0 replace the automatic values. Throws std::invalid_argument
 /// if a needed scale is zero or infinite (give the values explicitly then).
-RestCriterion automatic_rest_criterion(const SceneScales& scales, double speed = 0.0, double duration = 0.0);
+/// `coordination_change` > 0 replaces the automatic Z bound 0.05 sqrt(1000 / N).
+RestCriterion automatic_rest_criterion(const SceneScales& scales, double speed = 0.0, double duration = 0.0,
+                                       double coordination_change = 0.0);
 
 /// What the rest watcher reads of the grains at one step (rest_sample).
 struct RestSample {

@@ -34,6 +34,7 @@ struct RunOptions {
   /// Thresholds and duration of "at rest" (set from the scene even when chosen automatically).
   RestCriterion rest{};
   bool automatic_rest_speed = true;           ///< rest.speed was chosen automatically
+  bool automatic_rest_coordination_change = true;  ///< rest.coordination_change was chosen automatically
   bool automatic_rest_duration = true;        ///< rest.duration was chosen automatically
   OutputOptions output{};        ///< output folder and cadence
   std::uint64_t seed = 1;        ///< seed of every random generator the scene uses

@@ -508,8 +508,11 @@ class SceneParser {
     run.automatic_rest_speed = is_auto(*time, "rest_speed") || !time->has("rest_speed");
     if (!run.automatic_rest_speed) run.rest.speed = time->number("rest_speed", positive());
     run.rest.quantile = time->number_or("rest_quantile", auto_rest_quantile, Range{0.0, 1.0, false, true});
-    run.rest.coordination_change =
-        time->number_or("rest_coordination_change", auto_rest_coordination_change, non_negative());
+    run.automatic_rest_coordination_change =
+        is_auto(*time, "rest_coordination_change") || !time->has("rest_coordination_change");
+    if (!run.automatic_rest_coordination_change) {
+      run.rest.coordination_change = time->number("rest_coordination_change", non_negative());
+    }
     run.rest.contact_change = time->number_or("rest_contact_change", auto_rest_contact_change, closed(0.0, 1.0));
     run.automatic_rest_duration = is_auto(*time, "rest_duration") || !time->has("rest_duration");
     if (!run.automatic_rest_duration) run.rest.duration = time->number("rest_duration", non_negative());
@@ -564,7 +567,7 @@ class SceneParser {
         run.rest = automatic_rest_criterion(scales, run.automatic_rest_speed ? 0.0 : given.speed,
                                             run.automatic_rest_duration ? 0.0 : given.duration);
         run.rest.quantile = given.quantile;
-        run.rest.coordination_change = given.coordination_change;
+        if (!run.automatic_rest_coordination_change) run.rest.coordination_change = given.coordination_change;
         run.rest.contact_change = given.contact_change;
         if (!run.automatic_rest_duration) run.rest.duration = given.duration;  // 0 is a valid duration
       } catch (const std::invalid_argument& error) {
@@ -1475,7 +1478,9 @@ std::string scene_to_toml(const Scene& scene) {
     out << "rest_speed = " << (run.automatic_rest_speed ? std::string("\"auto\"") : format_number(run.rest.speed))
         << "\n";
     out << "rest_quantile = " << format_number(run.rest.quantile) << "\n";
-    out << "rest_coordination_change = " << format_number(run.rest.coordination_change) << "\n";
+    out << "rest_coordination_change = "
+        << (run.automatic_rest_coordination_change ? std::string("\"auto\"") : format_number(run.rest.coordination_change))
+        << "\n";
     out << "rest_contact_change = " << format_number(run.rest.contact_change) << "\n";
     out << "rest_duration = "
         << (run.automatic_rest_duration ? std::string("\"auto\"") : format_number(run.rest.duration)) << "\n";

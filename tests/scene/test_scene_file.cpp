@@ -458,7 +458,7 @@ TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
   EXPECT_DOUBLE_EQ(automatic.run.rest.speed, automatic_rest_criterion(scales).speed);
   EXPECT_DOUBLE_EQ(automatic.run.rest.speed, auto_rest_speed_fraction * scales.rest_reference_velocity);
   EXPECT_EQ(automatic.run.rest.quantile, 0.99);
-  EXPECT_EQ(automatic.run.rest.coordination_change, 0.05);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.coordination_change, 0.05 * std::sqrt(1000.0 / 64.0));  // 4^3 grains
   EXPECT_EQ(automatic.run.rest.contact_change, 0.2);
   EXPECT_DOUBLE_EQ(automatic.run.rest.duration, automatic_rest_criterion(scales).duration);
   const Scene given = parse_scene(

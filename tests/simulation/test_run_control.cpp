@@ -85,7 +85,10 @@ TEST(AutomaticRestCriterion, FractionsOfTheReferenceSpeedAndTime) {
   EXPECT_DOUBLE_EQ(automatic.speed, 0.05 * 3.0);
   EXPECT_DOUBLE_EQ(automatic.duration, 0.5 * 100.0);
   EXPECT_EQ(automatic.quantile, 0.99);
-  EXPECT_EQ(automatic.coordination_change, 0.05);
+  EXPECT_EQ(automatic.coordination_change, 0.05);  // no grain count: the value at 1000 grains
+  s.grains = 250;
+  EXPECT_DOUBLE_EQ(automatic_rest_criterion(s).coordination_change, 0.1);  // 0.05 sqrt(1000 / 250)
+  EXPECT_EQ(automatic_rest_criterion(s, 0.0, 0.0, 0.125).coordination_change, 0.125);
   EXPECT_EQ(automatic.contact_change, 0.2);
   const RestCriterion given = automatic_rest_criterion(s, 0.5, 7.0);
   EXPECT_EQ(given.speed, 0.5);
