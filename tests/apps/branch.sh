@@ -33,6 +33,16 @@ with h5py.File(sys.argv[1], "r") as f:
 PY
 a_end=$(sed -n 's/.*done: \([0-9]*\) steps.*/\1/p' "$work/a.log")
 
+# Resumed from a checkpoint inside the quiet window, the run stops at rest on the same step in
+# the same state (the watcher's window, reference Z and contacts are in the checkpoint).
+hash_of() { grep -o 'hash [0-9a-f]\{16\}' "$1" | awk '{print $2}'; }
+sed -e 's/^snapshot_every_steps = 20$/snapshot_every_steps = 20\nkeep_checkpoint_every = 20/' "$scene" > "$work/k.toml"
+"$rubble" run "$work/k.toml" --out "$work/k" --checkpoint-every 20 -q > "$work/k.log" 2>&1 || fail "run K"
+k_from=$(( (a_end - 30) / 20 * 20 ))
+"$rubble" run --resume "$work/k" --from-step "$k_from" -q > "$work/k-resume.log" 2>&1 || fail "resume K from $k_from"
+[ "$(hash_of "$work/k-resume.log")" = "$(hash_of "$work/a.log")" ] ||
+  fail "resumed at step $k_from inside the rest window: ends at $(hash_of "$work/k-resume.log"), the uninterrupted run at $(hash_of "$work/a.log")"
+
 # Resumed after rest with a later end: a new quiet window of rest_duration (0.1 s = 50 steps), not
 # one step; with --until end_time it runs to the end time.
 cp -r "$work/a" "$work/a2"
