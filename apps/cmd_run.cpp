@@ -21,6 +21,7 @@
 
 #include "apps/commands.hpp"
 #include "core/input_file.hpp"
+#include "simulation/branch.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/output_lock.hpp"
 #include "simulation/run.hpp"
@@ -73,7 +74,57 @@ struct RunArguments {
   bool print_default = false;
   std::string default_scene = "spheres";  ///< without SCENE: "spheres" or "polyhedra"
   bool quiet = false;
+  std::string from;  ///< --from RUN_DIR[:last|:snapshot=K|:time=T]: branch from a saved state
+  std::string until;  ///< --until rest|end_time ("": the scene's)
+  double rest_speed = -1.0;                ///< --rest-speed (< 0: the scene's)
+  double rest_quantile = -1.0;             ///< --rest-quantile
+  double rest_coordination_change = -1.0;  ///< --rest-coordination-change
+  double rest_contact_change = -1.0;       ///< --rest-contact-change
+  double rest_duration = -1.0;             ///< --rest-duration
 };
+
+/// Applies --until and the --rest-* overrides to `scene` (a new run, a branch or a resumed one).
+/// Returns an error message, or "" when fine; sets `overridden` when any was given.
+std::string apply_rest_overrides(const RunArguments& args, Scene& scene, bool& overridden) {
+  RunOptions& run = scene.run;
+  overridden = !args.until.empty() || args.rest_speed >= 0.0 || args.rest_quantile >= 0.0 ||
+               args.rest_coordination_change >= 0.0 || args.rest_contact_change >= 0.0 || args.rest_duration >= 0.0;
+  if (!args.until.empty()) {
+    const bool was = run.until_rest;
+    run.until_rest = args.until == "rest";
+    if (run.until_rest && !was) {
+      // The scene had no rest criterion: the automatic one, from the scene's grains.
+      try {
+        run.rest = automatic_rest_criterion(scene_scales(scene.model, scene.state, run.step.gravity));
+      } catch (const std::invalid_argument& error) {
+        return std::string("--until rest: ") + error.what() + " (give --rest-speed and --rest-duration)";
+      }
+      run.automatic_rest_speed = true;
+      run.automatic_rest_duration = true;
+      run.automatic_rest_coordination_change = true;
+    }
+  }
+  const bool thresholds = args.rest_speed >= 0.0 || args.rest_quantile >= 0.0 || args.rest_coordination_change >= 0.0 ||
+                          args.rest_contact_change >= 0.0 || args.rest_duration >= 0.0;
+  if (thresholds && !run.until_rest) {
+    return "--rest-* options are used with until = \"rest\" (the scene's [time] until, or --until rest)";
+  }
+  if (args.rest_speed >= 0.0) {
+    run.rest.speed = args.rest_speed;
+    run.automatic_rest_speed = false;
+  }
+  if (args.rest_quantile >= 0.0) run.rest.quantile = args.rest_quantile;
+  if (args.rest_coordination_change >= 0.0) {
+    run.rest.coordination_change = args.rest_coordination_change;
+    run.automatic_rest_coordination_change = false;
+  }
+  if (args.rest_contact_change >= 0.0) run.rest.contact_change = args.rest_contact_change;
+  if (args.rest_duration >= 0.0) {
+    run.rest.duration = args.rest_duration;
+    run.automatic_rest_duration = false;
+  }
+  return "";
+}
 
 /// "  time per stage: ..." with each stage's share of the summed stage and output time.
 std::string stage_breakdown(const RunSummary& summary) {
@@ -109,8 +160,13 @@ int run_command(const RunArguments& args) {
   RunControl control;
   LoadedCheckpoint loaded;
   const bool resuming = !args.resume_directory.empty();
+  const bool branching = !args.from.empty();
+  std::string branch_description;
   try {
     if (!resuming && args.from_step >= 0) return bad_input("--from-step is used with --resume DIR");
+    if (resuming && branching) {
+      return bad_input("--from starts a new run from a saved state and --resume goes on with one: give one of them");
+    }
     if (resuming) {
       if (!args.scene_path.empty()) return bad_input("give a scene file or --resume DIR, not both");
       if (!args.output_directory.empty()) {
@@ -163,6 +219,28 @@ int run_command(const RunArguments& args) {
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
   }
+  if (branching) {
+    // The bodies' state from the saved run; everything else from the scene (docs/checkpoints.md,
+    // "Branching").
+    try {
+      SavedState saved = load_saved_state(parse_branch_source(args.from));
+      if (const auto mismatch = body_mismatch(scene.model, saved.model)) {
+        return bad_input(fmt::format("--from {}: the bodies of {} differ from those of the scene {}: {}", args.from,
+                                     saved.description, control.scene_source, *mismatch));
+      }
+      scene.state = std::move(saved.state);
+      branch_description = saved.description;
+    } catch (const BranchError& e) {
+      return bad_input(std::string("--from: ") + e.what());
+    }
+    control.rest_armed = true;
+  }
+  {
+    bool overridden = false;
+    const std::string problem = apply_rest_overrides(args, scene, overridden);
+    if (!problem.empty()) return bad_input(problem);
+    control.rest_overridden = resuming && overridden;
+  }
   if (!resuming) {
     if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
     if (args.end_time > 0.0) scene.run.end_time = args.end_time;
@@ -172,6 +250,13 @@ int run_command(const RunArguments& args) {
   if (args.end_time > 0.0) {
     if (const auto problem = end_time_problem(args.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
       return bad_input("--end-time: " + *problem);
+    }
+  } else if (branching) {
+    // The scene's end time counts from t = 0; a branch starts at its saved time.
+    if (const auto problem =
+            end_time_problem(scene.run.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
+      return bad_input(fmt::format("the scene's [time] end_time for a branch from t = {:.6g} s: {} (give --end-time)",
+                                   scene.state.time, *problem));
     }
   }
   control.checkpoint_every_steps = args.checkpoint_every;
@@ -186,10 +271,10 @@ int run_command(const RunArguments& args) {
     *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
               << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
               << (scene.run.until_rest
-                      ? fmt::format(", until at rest (mean kinetic energy < {:.3g} J per grain for {:.4g} s) or t = ",
-                                    scene.run.rest.mean_kinetic_energy, scene.run.rest.duration)
+                      ? fmt::format(", until at rest ({}) or t = ", describe_rest_criterion(scene.run.rest))
                       : std::string(", until t = "))
               << scene.run.end_time << " s\n";
+    if (branching) *progress << "rubble run: branching from " << branch_description << "\n";
     if (resuming) {
       *progress << "rubble run: resuming from " << loaded.file.string() << " (step " << loaded.checkpoint.state.step
                 << ", t = " << loaded.checkpoint.state.time << " s)\n";
@@ -209,7 +294,9 @@ int run_command(const RunArguments& args) {
       return 128 + signal_number;
     }
     std::cout << "rubble run: done: " << summary.steps << " steps"
-              << (summary.first_step > 0 ? fmt::format(" (resumed at step {})", summary.first_step) : std::string())
+              << (summary.first_step > 0 ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched",
+                                                       summary.first_step)
+                                         : std::string())
               << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
               << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
               << summary.mean_iterations << ", max residual " << summary.max_residual << ", "
@@ -300,6 +387,41 @@ void register_run_command(CLI::App& app) {
       ->check(CLI::IsMember({"spheres", "polyhedra"}))
       ->excludes(scene_option);
   run->add_flag("-q,--quiet", args->quiet, "No progress lines");
+  run->add_option("--from", args->from,
+                  "Start a new run of SCENE from a state saved by another run: positions, orientations, velocities "
+                  "(and time, step) from RUN_DIR's newest checkpoint (RUN_DIR or RUN_DIR:last; bit for bit), or "
+                  "from its run.h5 (RUN_DIR:snapshot=K, K < 0 from the end; RUN_DIR:time=T, the last snapshot at or "
+                  "before T s); materials, contact laws, solver, gravity, dt and end from SCENE. The bodies must "
+                  "match (count, shape, size)")
+      ->type_name("RUN_DIR[:SELECTOR]");
+  run->add_option("--until", args->until,
+                  "Override the scene's [time] until: rest (stop when the grains are at rest, or at the end time) "
+                  "or end_time (run to the end time); also with --resume")
+      ->check(CLI::IsMember({"rest", "end_time"}));
+  run->add_option("--rest-speed", args->rest_speed,
+                  "Rest: the speed quantile of |v| + |w| r must stay below V m/s (default: 5% of the free-fall "
+                  "velocity sqrt(2GM/R) under self-gravity, of sqrt(g d_min) under uniform gravity; "
+                  "docs/scene-file.md)")
+      ->check(positive)
+      ->type_name("V");
+  run->add_option("--rest-quantile", args->rest_quantile,
+                  "Rest: which quantile of the grain speeds is held to --rest-speed (default 0.99; 1: the fastest)")
+      ->check(number("a number in (0, 1]", [](double v) { return v > 0.0 && v <= 1.0; }))
+      ->type_name("Q");
+  run->add_option("--rest-coordination-change", args->rest_coordination_change,
+                  "Rest: largest change of the coordination number Z over the rest duration (default 0.05 "
+                  "sqrt(1000/N) for N grains, and at least 4/N: two contacts)")
+      ->check(non_negative)
+      ->type_name("DZ");
+  run->add_option("--rest-contact-change", args->rest_contact_change,
+                  "Rest: largest fraction of contacts created or broken over the rest duration (default 0.2)")
+      ->check(number("a number in [0, 1]", [](double v) { return v >= 0.0 && v <= 1.0; }))
+      ->type_name("F");
+  run->add_option("--rest-duration", args->rest_duration,
+                  "Rest: how long every rest condition must hold, s (default: half a characteristic time, "
+                  "0.5/sqrt(G rho) under self-gravity, 0.5 sqrt(2H/g) under uniform gravity)")
+      ->check(non_negative)
+      ->type_name("T");
   run->callback([args] {
     if (args->print_default) {
       std::cout << default_scene_toml(default_variant(*args));

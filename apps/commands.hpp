@@ -21,6 +21,8 @@ void register_pack_command(CLI::App& app);
 void register_gravity_command(CLI::App& app);
 /// `rubble post RUN.h5 ...`: metrics, plots and ParaView files of a run.
 void register_post_command(CLI::App& app);
+/// `rubble export RUN.h5 [--snapshot K] -o SCENE.toml`: a saved state written as a scene file.
+void register_export_command(CLI::App& app);
 /// `rubble fclib FILE.hdf5 ...`: solves an FCLib local frictional-contact problem by NLGS.
 void register_fclib_command(CLI::App& app);
 

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "rubble 0.1.0");
   rubble::apps::register_run_command(app);
+  rubble::apps::register_export_command(app);
 #ifdef RUBBLE_HAS_PACK_COMMAND
   rubble::apps::register_pack_command(app);
 #endif

@@ -325,6 +325,23 @@ RunFile::~RunFile() {
   impl_->close();
 }
 
+namespace {
+/// Writes /run/<name> (a scalar with its units and source), replacing an existing one.
+void write_run_parameter(hid_t run_group, const RunParameter& parameter, const fs::path& path) {
+  if (parameter.name.empty() || parameter.name.find_first_of("/.") != std::string::npos) {
+    throw std::invalid_argument(path.string() + ": bad run parameter name '" + parameter.name + "'");
+  }
+  if (H5Lexists(run_group, parameter.name.c_str(), H5P_DEFAULT) > 0) {
+    hdf5::check(H5Ldelete(run_group, parameter.name.c_str(), H5P_DEFAULT), path,
+                "cannot replace /run/" + parameter.name);
+  }
+  const std::array<hsize_t, 0> scalar{};
+  hdf5::write_doubles(run_group, parameter.name, std::span<const double>(&parameter.value, 1), scalar, path);
+  units(run_group, parameter.name, parameter.units, path);
+  hdf5::write_attribute_on(run_group, parameter.name, "source", parameter.automatic ? "auto" : "scene", path);
+}
+}  // namespace
+
 RunFile RunFile::create(const fs::path& path, const Model& model, std::string_view scene_text,
                         std::span<const std::string_view> stage_names, std::span<const RunParameter> parameters) {
   std::set<std::string_view> unique_names;
@@ -351,15 +368,8 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   // How the run was set up, with its "auto" values resolved, and whether it has ended.
   impl->run_group = hdf5::create_group(root, "run", path);
   hdf5::write_attribute(impl->run_group.get(), "status", run_status_name(RunStatus::running), path);
-  for (const RunParameter& parameter : parameters) {
-    if (parameter.name.empty() || parameter.name.find_first_of("/.") != std::string::npos) {
-      throw std::invalid_argument(path.string() + ": bad run parameter name '" + parameter.name + "'");
-    }
-    const std::array<hsize_t, 0> scalar{};
-    hdf5::write_doubles(impl->run_group.get(), parameter.name, std::span<const double>(&parameter.value, 1), scalar, path);
-    units(impl->run_group.get(), parameter.name, parameter.units, path);
-    hdf5::write_attribute_on(impl->run_group.get(), parameter.name, "source", parameter.automatic ? "auto" : "scene", path);
-  }
+  hdf5::write_attribute(impl->run_group.get(), "stop_reason", std::string_view(), path);
+  for (const RunParameter& parameter : parameters) write_run_parameter(impl->run_group.get(), parameter, path);
 
   impl->series_group = hdf5::create_group(root, "series", path);
   const hid_t series = impl->series_group.get();
@@ -462,6 +472,7 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
   }
   impl->run_group = hdf5::open_group(root, "run", path);
   hdf5::replace_attribute(impl->run_group.get(), "status", run_status_name(RunStatus::running), path);
+  hdf5::replace_attribute(impl->run_group.get(), "stop_reason", std::string_view(), path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));
 }
@@ -512,10 +523,21 @@ void RunFile::write_snapshot(const State& state, const ContactList& contacts, bo
   f.guarded([&] { write_snapshot_now(state, contacts, interrupted); });
 }
 
-void RunFile::set_status(RunStatus status) {
+void RunFile::set_status(RunStatus status, std::string_view reason) {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
-  f.guarded([&] { hdf5::replace_attribute(f.run_group.get(), "status", run_status_name(status), f.path); });
+  f.guarded([&] {
+    hdf5::replace_attribute(f.run_group.get(), "status", run_status_name(status), f.path);
+    hdf5::replace_attribute(f.run_group.get(), "stop_reason", reason, f.path);
+  });
+}
+
+void RunFile::set_parameters(std::span<const RunParameter> parameters) {
+  Impl& f = *impl_;
+  const hdf5::QuietErrors quiet;
+  f.guarded([&] {
+    for (const RunParameter& parameter : parameters) write_run_parameter(f.run_group.get(), parameter, f.path);
+  });
 }
 
 void RunFile::write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted) {

@@ -105,8 +105,12 @@ class RunFile {
   /// /snapshot_step. `interrupted` marks the state at a stop by signal (@interrupted = 1), which
   /// reopen() removes.
   void write_snapshot(const State& state, const ContactList& contacts, bool interrupted = false);
-  /// Sets /run@status (written to disk with the next flush).
-  void set_status(RunStatus status);
+  /// Sets /run@status and /run@stop_reason, a sentence saying which criterion ended the run
+  /// (written to disk with the next flush).
+  void set_status(RunStatus status, std::string_view reason = {});
+  /// Writes (or replaces) /run/<name> for each parameter: a resumed run whose settings were
+  /// overridden on the command line (`rubble run --resume DIR --rest-speed V`) records them.
+  void set_parameters(std::span<const RunParameter> parameters);
   /// Writes the buffered series rows and flushes HDF5's buffers to disk.
   void flush();
   /// From now on HDF5 writes the file's metadata only in flush() (and on close): its metadata

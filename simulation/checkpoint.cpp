@@ -244,6 +244,7 @@ Contact get_contact(Reader& in) {
 template <typename Sink>
 void put_progress(Writer<Sink>& out, const RunProgress& p) {
   out.put(p.first_step);
+  out.put(p.first_time);
   out.put(p.end_step);
   out.put(p.snapshot_period);
   out.put(p.series_rows);
@@ -257,6 +258,7 @@ void put_progress(Writer<Sink>& out, const RunProgress& p) {
 RunProgress get_progress(Reader& in) {
   RunProgress p;
   p.first_step = in.get<std::int64_t>();
+  p.first_time = in.get<double>();
   p.end_step = in.get<std::int64_t>();
   p.snapshot_period = in.get<std::int64_t>();
   p.series_rows = in.get<std::int64_t>();
@@ -294,10 +296,21 @@ void put_payload(Writer<Sink>& out, const CheckpointView& checkpoint) {
     out.put(k < memory.common_normals.size() ? memory.common_normals[k] : Vec3::Zero());
   }
   put_progress(out, checkpoint.progress);
-  out.put(static_cast<std::uint8_t>(checkpoint.rest.armed));
-  out.put(static_cast<std::uint8_t>(checkpoint.rest.below));
-  out.put(checkpoint.rest.below_since);
-  out.put(checkpoint.rest.decay_window);
+  const RestWatch& rest = checkpoint.rest;
+  out.put(static_cast<std::uint8_t>(rest.armed));
+  out.put(static_cast<std::uint8_t>(rest.window_open));
+  out.put(rest.window_start);
+  out.put(rest.reference_coordination);
+  out.put(static_cast<std::uint64_t>(rest.reference_pairs.size()));
+  for (const auto& [a, b] : rest.reference_pairs) {
+    out.put(a);
+    out.put(b);
+  }
+  out.put(rest.last_failure);
+  out.put(rest.last_speed);
+  out.put(rest.last_coordination_change);
+  out.put(rest.last_contact_change);
+  out.put(rest.decay_window);
   out.put(static_cast<std::uint64_t>(checkpoint.rest.history.size()));
   for (const auto& [t, log_energy] : checkpoint.rest.history) {
     out.put(t);
@@ -467,8 +480,12 @@ Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::s
   header.get<std::uint32_t>();
   const auto payload_size = header.get<std::uint64_t>();
   if (version != checkpoint_format_version) {
-    throw CheckpointError(fmt::format("{}: checkpoint format version {}, this rubble reads version {}", source,
-                                      version, checkpoint_format_version));
+    throw CheckpointError(fmt::format(
+        "{}: checkpoint format version {}, this rubble reads version {}{}", source, version, checkpoint_format_version,
+        version < checkpoint_format_version
+            ? " (written by an older rubble: finish that run with it, or start a new run from its state with "
+              "rubble run SCENE --from RUN_DIR:snapshot=K, docs/checkpoints.md)"
+            : ""));
   }
   if (payload_size != bytes.size() - header_bytes - trailer_bytes) {
     throw CheckpointError(fmt::format("{}: truncated or extended checkpoint: the header announces {} payload bytes, "
@@ -505,10 +522,23 @@ Checkpoint deserialize_checkpoint(std::span<const std::byte> bytes, const std::s
     checkpoint.detection_memory.common_normals[k] = in.vec3();
   }
   checkpoint.progress = get_progress(in);
-  checkpoint.rest.armed = in.get<std::uint8_t>() != 0;
-  checkpoint.rest.below = in.get<std::uint8_t>() != 0;
-  checkpoint.rest.below_since = in.get<double>();
-  checkpoint.rest.decay_window = in.get<double>();
+  RestWatch& rest = checkpoint.rest;
+  rest.armed = in.get<std::uint8_t>() != 0;
+  rest.window_open = in.get<std::uint8_t>() != 0;
+  rest.window_start = in.get<double>();
+  rest.reference_coordination = in.get<double>();
+  rest.reference_pairs.resize(in.length(8, "rest reference contacts"));
+  for (auto& [a, b] : rest.reference_pairs) {
+    a = in.get<std::uint32_t>();
+    b = in.get<std::uint32_t>();
+    if (a >= n || b >= n) in.fail(fmt::format("rest reference contact ({}, {}) out of the {} bodies", a, b, n));
+  }
+  rest.last_failure = in.get<std::uint8_t>();
+  if (rest.last_failure > 3) in.fail(fmt::format("rest condition {} unknown", rest.last_failure));
+  rest.last_speed = in.get<double>();
+  rest.last_coordination_change = in.get<double>();
+  rest.last_contact_change = in.get<double>();
+  rest.decay_window = in.get<double>();
   checkpoint.rest.history.resize(in.length(16, "rest history"));
   for (auto& [t, log_energy] : checkpoint.rest.history) {
     t = in.get<double>();
@@ -636,6 +666,36 @@ LoadedCheckpoint load_newest_checkpoint(const fs::path& folder) {
   if (loaded.rejected.empty()) message += " (no step-*.ckpt file)";
   for (const std::string& reason : loaded.rejected) message += "\n  rejected " + reason;
   throw CheckpointError(message);
+}
+
+RestWatch save_rest_watch(const RestDetector& detector) {
+  RestWatch watch;
+  watch.armed = detector.armed;
+  watch.window_open = detector.window_start.has_value();
+  watch.window_start = detector.window_start.value_or(0.0);
+  watch.reference_coordination = detector.reference_coordination;
+  watch.reference_pairs = detector.reference_pairs;
+  watch.last_failure = static_cast<std::uint8_t>(detector.last_failure);
+  watch.last_speed = detector.last_speed;
+  watch.last_coordination_change = detector.last_coordination_change;
+  watch.last_contact_change = detector.last_contact_change;
+  watch.history.assign(detector.history.begin(), detector.history.end());
+  watch.decay_window = detector.decay_window;
+  return watch;
+}
+
+void restore_rest_watch(const RestWatch& watch, RestDetector& detector) {
+  detector.armed = watch.armed;
+  detector.window_start.reset();
+  if (watch.window_open) detector.window_start = watch.window_start;
+  detector.reference_coordination = watch.reference_coordination;
+  detector.reference_pairs = watch.reference_pairs;
+  detector.last_failure = static_cast<RestCondition>(watch.last_failure);
+  detector.last_speed = watch.last_speed;
+  detector.last_coordination_change = watch.last_coordination_change;
+  detector.last_contact_change = watch.last_contact_change;
+  detector.history.assign(watch.history.begin(), watch.history.end());
+  detector.decay_window = watch.decay_window;
 }
 
 }  // namespace rubble

@@ -30,6 +30,7 @@
 #include "contact_detection/contact.hpp"
 #include "contact_detection/detection.hpp"
 #include "core/state.hpp"
+#include "simulation/run_control.hpp"
 
 namespace rubble {
 
@@ -43,6 +44,9 @@ struct CheckpointError : std::runtime_error {
 /// written twice or missing and ends with the same summary.
 struct RunProgress {
   std::int64_t first_step = 0;         ///< state.step when the run started (the scene's initial step)
+  /// s, state.time when the run started: the scene's initial time, or the saved state's for a run
+  /// branched from another (rubble run SCENE --from DIR); the end step is counted from it.
+  double first_time = 0.0;
   std::int64_t end_step = 0;           ///< state.step at which the run ends
   std::int64_t snapshot_period = 1;    ///< steps between snapshots, counted from first_step
   std::int64_t series_rows = 0;        ///< rows in the run file's /series up to this checkpoint
@@ -56,10 +60,17 @@ struct RunProgress {
 /// The memory of the "until at rest" watcher (simulation/run_control.hpp, RestDetector), so that
 /// a resumed run stops at rest on the same step as an uninterrupted one.
 struct RestWatch {
-  bool armed = false;                               ///< the energy has been above the threshold
-  bool below = false;                               ///< below_since is set
-  double below_since = 0.0;                         ///< s, when the energy went below the threshold
-  std::vector<std::pair<double, double>> history;   ///< (t, ln E) samples of the decay fit
+  bool armed = false;                  ///< the speed quantile has been above the rest speed
+  bool window_open = false;            ///< window_start is set
+  double window_start = 0.0;           ///< s, start of the current quiet window
+  double reference_coordination = 0.0; ///< Z at window_start
+  /// Force-bearing contact pairs at window_start (sorted, lower id first).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> reference_pairs;
+  std::uint8_t last_failure = 0;       ///< RestCondition that closed the last window
+  double last_speed = 0.0;             ///< m/s, last measured speed quantile
+  double last_coordination_change = 0.0;  ///< last |Z - Z0|
+  double last_contact_change = 0.0;    ///< last fraction of contacts changed
+  std::vector<std::pair<double, double>> history;   ///< (t, ln s) samples of the decay fit
   double decay_window = 0.0;                        ///< s, span of the decay fit
 };
 
@@ -104,7 +115,7 @@ struct CheckpointView {
 CheckpointView checkpoint_view(const Checkpoint& checkpoint);
 
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).
-inline constexpr std::uint32_t checkpoint_format_version = 2;  // 2: held gravity field
+inline constexpr std::uint32_t checkpoint_format_version = 3;  // 2: held gravity field; 3: rest watcher on speeds, Z, contacts
 
 /// CRC-64/XZ of `bytes`, continuing from `crc` (pass the previous result to chain; 0 to start).
 std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);
@@ -169,5 +180,12 @@ struct LoadedCheckpoint {
 /// `rejected`) damaged newer ones. Throws CheckpointError if there is none, listing why each
 /// file was rejected.
 LoadedCheckpoint load_newest_checkpoint(const std::filesystem::path& folder);
+
+/// The watcher's memory as saved in a checkpoint.
+RestWatch save_rest_watch(const RestDetector& detector);
+
+/// Restores the watcher's memory from a checkpoint (its criterion is left as it is: the scene's,
+/// or the command line's overrides).
+void restore_rest_watch(const RestWatch& watch, RestDetector& detector);
 
 }  // namespace rubble

@@ -169,6 +169,28 @@ std::string short_reason(const std::string& what) {
   return (stamp == std::string::npos ? std::string() : what.substr(0, stamp) + ": ") + reason;
 }
 
+/// The rest watcher's state for the progress line: each measured value against its threshold,
+/// "rest p99 1.2e-03/2.6e-03 m/s  dZ 0.004/0.02  dC 1.3%/5%  quiet 120/1720 s".
+std::string rest_progress(const RestDetector& rest, double time) {
+  const RestCriterion& c = rest.criterion;
+  const std::string which = c.quantile >= 1.0 ? std::string("max") : fmt::format("p{:.4g}", 100.0 * c.quantile);
+  return fmt::format("rest {} {:.2e}/{:.2e} m/s  dZ {:.3f}/{:.3g}  dC {:.1f}%/{:.3g}%  quiet {:.4g}/{:.4g} s", which,
+                     rest.last_speed, c.speed, rest.last_coordination_change, c.coordination_change,
+                     100.0 * rest.last_contact_change, 100.0 * c.contact_change,
+                     rest.window_start ? time - *rest.window_start : 0.0, c.duration);
+}
+
+/// The sentence for a run stopped at rest: what held, measured against what.
+std::string rest_reason(const RestDetector& rest, double time) {
+  const RestCriterion& c = rest.criterion;
+  const std::string which = c.quantile >= 1.0 ? std::string("max") : fmt::format("p{:.4g}", 100.0 * c.quantile);
+  return fmt::format(
+      "at rest at t = {:.6g} s: for {:.4g} s (since t = {:.6g} s) {}(|v| + |w| r) stayed below {:.3g} m/s (now "
+      "{:.3g}), Z moved by at most {:.3g} (now {:.3g}) and at most {:.3g}% of the contacts changed (now {:.3g}%)",
+      time, c.duration, rest.window_start.value_or(time), which, c.speed, rest.last_speed, c.coordination_change,
+      rest.last_coordination_change, 100.0 * c.contact_change, 100.0 * rest.last_contact_change);
+}
+
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunControl& control) { return run_scene(scene, scene.state, control); }
@@ -185,7 +207,11 @@ std::vector<RunParameter> run_parameters(const Scene& scene, std::int64_t snapsh
       {"snapshot_every_steps", static_cast<double>(snapshot_period), "1",
        run.output.snapshot_every_steps <= 0 && run.output.snapshot_interval <= 0.0}};
   if (run.until_rest) {
-    parameters.push_back({"rest_kinetic_energy", run.rest.mean_kinetic_energy, "J", run.automatic_rest_kinetic_energy});
+    parameters.push_back({"rest_speed", run.rest.speed, "m/s", run.automatic_rest_speed});
+    parameters.push_back({"rest_quantile", run.rest.quantile, "1", false});
+    parameters.push_back(
+        {"rest_coordination_change", run.rest.coordination_change, "1", run.automatic_rest_coordination_change});
+    parameters.push_back({"rest_contact_change", run.rest.contact_change, "1", false});
     parameters.push_back({"rest_duration", run.rest.duration, "s", run.automatic_rest_duration});
   }
   return parameters;
@@ -247,7 +273,10 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   // run and in a resumed one (whose scene is parsed from the same text).
   // A step count past max_run_steps (or not finite) would not fit the cast below: refused, as
   // the scene file's and the command line's checks refuse it (run_control.hpp).
-  const double wanted_steps = (run.end_time - initial_time) / h;
+  // A resumed run counts from the time its first session started (the scene's initial time, or the
+  // state a branch started from), which the checkpoint keeps.
+  const double first_time = control.resume != nullptr ? control.resume->progress.first_time : initial_time;
+  const double wanted_steps = (run.end_time - first_time) / h;
   if (!std::isfinite(wanted_steps) || wanted_steps > max_run_steps) {
     throw std::invalid_argument(fmt::format("end time {:.6g} s: {:.6g} steps of dt = {:.6g} s, expected at most 10^12",
                                             run.end_time, wanted_steps, h));
@@ -342,6 +371,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     }
   } else {
     progress.first_step = state.step;
+    progress.first_time = state.time;
     progress.snapshot_period = snapshot_period(run, total_steps);
     const std::vector<RunParameter> parameters = run_parameters(scene, progress.snapshot_period);
     output([&] {
@@ -367,16 +397,25 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   progress.end_step = progress.first_step + total_steps;
   summary.first_step = state.step;
 
-  // until = "rest" (run_control.hpp): stop once the mean kinetic energy per grain stayed below the
-  // threshold long enough. A resumed run takes the watcher's memory from the checkpoint.
+  // until = "rest" (run_control.hpp): stop once the grains' speeds, Z and contacts held still long
+  // enough. A resumed run takes the watcher's memory from the checkpoint.
   RestDetector rest;
   rest.criterion = run.rest;
+  rest.armed = control.rest_armed || rest_starts_armed(model, state);
   if (control.resume != nullptr) {
-    const RestWatch& saved = control.resume->rest;
-    rest.armed = saved.armed;
-    if (saved.below) rest.below_since = saved.below_since;
-    rest.history.assign(saved.history.begin(), saved.history.end());
-    rest.decay_window = saved.decay_window;
+    restore_rest_watch(control.resume->rest, rest);
+    // A run that ended at rest, resumed to go on (--end-time), would stop again at its first step:
+    // its quiet window already lasted the duration. So would one whose thresholds were changed.
+    // The window starts afresh at the next step: rest must hold for a whole duration again.
+    const bool ended_at_rest = rest.window_start && state.time - *rest.window_start >= rest.criterion.duration;
+    if (ended_at_rest || control.rest_overridden) rest.window_start.reset();
+    if (ended_at_rest && run.until_rest && control.progress) {
+      *control.progress << "rubble run: the checkpoint's run had ended at rest; the rest watcher starts a new "
+                           "window (with --until end_time the run goes on to its end time)\n";
+    }
+    if (control.rest_overridden) {
+      output([&] { file->set_parameters(run_parameters(scene, progress.snapshot_period)); });
+    }
   }
 
   const auto write_checkpoint_now = [&] {
@@ -385,12 +424,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     progress.snapshots = file->snapshot_count();
     // Saved from the run's own objects through a view and streamed to the file: no copy of the
     // state, contacts or detection memory, so a checkpoint adds ~1 MiB to the run's working set.
-    RestWatch saved_rest;
-    saved_rest.armed = rest.armed;
-    saved_rest.below = rest.below_since.has_value();
-    saved_rest.below_since = rest.below_since.value_or(0.0);
-    saved_rest.history.assign(rest.history.begin(), rest.history.end());
-    saved_rest.decay_window = rest.decay_window;
+    const RestWatch saved_rest = save_rest_watch(rest);
     const CheckpointView checkpoint{control.scene_text,         control.scene_source,   run.end_time,
                                     run.seed,                   state,                  workspace.contacts,
                                     workspace.detection_memory, progress,               saved_rest,
@@ -439,7 +473,9 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (problem) {
       const std::string stage = locate_failure(model, before, workspace, run.step, control.max_speed, *problem);
       try {
-        file->set_status(RunStatus::numerical_failure);
+        file->set_status(RunStatus::numerical_failure,
+                       fmt::format("numerical failure at step {} (t = {:.6g} s): body {}: {}", state.step, state.time,
+                                   problem->body, problem->what));
         file->flush();  // what the run wrote up to the failure, if the disk takes it
       } catch (const std::runtime_error&) {
         // The numerical failure is the news; a run file that cannot be flushed is secondary.
@@ -479,8 +515,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (!report.solver.converged) ++progress.unconverged_steps;
     progress.wall_seconds += step_seconds;
     const std::int64_t done = state.step - progress.first_step;
-    const bool at_rest = run.until_rest && grain_count > 0 &&
-                         rest.update(state.time, row.kinetic_energy / static_cast<double>(grain_count));
+    const bool at_rest =
+        run.until_rest && grain_count > 0 && rest.update(rest_sample(model, state, workspace.contacts, run.rest.quantile));
     const bool at_end = state.step == progress.end_step || at_rest;
     if (done % progress.snapshot_period == 0 || at_end) write_snapshot(false);
 
@@ -512,9 +548,11 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
         if (at_rest) eta_text = "0s (at rest)";
       }
       *control.progress << fmt::format(
-          "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J  elapsed {}  ETA {}\n",
+          "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J{}  elapsed {}  "
+          "ETA {}\n",
           state.step, progress.end_step, state.time, report.contacts, report.solver.iterations, report.solver.residual,
-          row.kinetic_energy, format_duration(elapsed), eta_text);
+          row.kinetic_energy, run.until_rest ? "  " + rest_progress(rest, state.time) : std::string(),
+          format_duration(elapsed), eta_text);
       control.progress->flush();
       last_progress = now;
     }
@@ -524,11 +562,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     }
     if (at_rest) {
       summary.reached_rest = true;
-      if (control.progress) {
-        *control.progress << fmt::format(
-            "rubble run: at rest at t = {:.6g} s: mean kinetic energy below {:.3g} J per grain for {:.4g} s\n",
-            state.time, run.rest.mean_kinetic_energy, run.rest.duration);
-      }
+      if (control.progress) *control.progress << "rubble run: " << rest_reason(rest, state.time) << "\n";
       break;
     }
   }
@@ -536,8 +570,23 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   const RunStatus status = summary.interrupted   ? RunStatus::interrupted
                            : summary.reached_rest ? RunStatus::at_rest
                                                   : RunStatus::end_time;
+  // Which criterion ended the run, in words (/run@stop_reason, docs/output-format.md).
+  if (summary.interrupted) {
+    summary.stop_reason = fmt::format("stopped by a signal at step {} (t = {:.6g} s)", state.step, state.time);
+  } else if (summary.reached_rest) {
+    summary.stop_reason = rest_reason(rest, state.time);
+  } else {
+    summary.stop_reason = fmt::format("end time reached at t = {:.6g} s (step {})", state.time, state.step);
+    if (run.until_rest) {
+      summary.stop_reason += "; not at rest: " + (rest.window_start ? fmt::format("quiet for {:.4g} s of {:.4g} s",
+                                                                                 state.time - *rest.window_start,
+                                                                                 run.rest.duration)
+                                                                    : std::string("speed above the rest speed")) +
+                             fmt::format(" (last failed condition: {})", rest_condition_name(rest.last_failure));
+    }
+  }
   output([&] {
-    file->set_status(status);
+    file->set_status(status, summary.stop_reason);
     file->flush();
   });
 

@@ -65,6 +65,12 @@ struct RunControl {
   /// moved to DIR/run.h5.damaged-at-step-K and the series goes on in a new DIR/run.h5 whose first
   /// snapshot is the checkpoint's state (a note goes to `warnings`).
   const Checkpoint* resume = nullptr;
+  /// With `resume`: the scene's rest settings were changed (rubble run --resume DIR --rest-speed
+  /// ...): the watcher's quiet window starts afresh and /run records the new thresholds.
+  bool rest_overridden = false;
+  /// The rest watcher starts armed: a run branched from another's state (rubble run SCENE --from
+  /// DIR) may start quiet, and must still stop at rest (a new run arms on the first motion).
+  bool rest_armed = false;
 };
 
 /// What a run did.
@@ -81,6 +87,7 @@ struct RunSummary {
   std::filesystem::path run_file;      ///< the HDF5 file written
   bool interrupted = false;            ///< stopped by RunControl::stop_requested before the end
   bool reached_rest = false;           ///< stopped because the grains were at rest (until = "rest")
+  std::string stop_reason;             ///< which criterion ended the run, in words (/run@stop_reason)
   std::filesystem::path last_checkpoint;  ///< the checkpoint written last (empty if none)
   std::uint64_t state_hash = 0;        ///< state_hash() of the final state
   /// s of wall time per stage of the step (Stage order), summed over this session's steps.

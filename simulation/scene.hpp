@@ -31,9 +31,10 @@ struct RunOptions {
   bool automatic_time_step = false;
   /// [time] until = "rest": also stop as soon as the grains are at rest (RestDetector).
   bool until_rest = false;
-  /// Threshold and duration of "at rest" (set from the scene even when chosen automatically).
+  /// Thresholds and duration of "at rest" (set from the scene even when chosen automatically).
   RestCriterion rest{};
-  bool automatic_rest_kinetic_energy = true;  ///< rest.mean_kinetic_energy was chosen automatically
+  bool automatic_rest_speed = true;           ///< rest.speed was chosen automatically
+  bool automatic_rest_coordination_change = true;  ///< rest.coordination_change was chosen automatically
   bool automatic_rest_duration = true;        ///< rest.duration was chosen automatically
   OutputOptions output{};        ///< output folder and cadence
   std::uint64_t seed = 1;        ///< seed of every random generator the scene uses

@@ -482,7 +482,16 @@ class SceneParser {
   void parse_time() {
     const auto time = root_.optional_table("time");
     if (!time) root_.fail(nullptr, "time", "missing required table [time] (expected dt and end_time, in s)");
-    time->allow_only({"dt", "theta", "end_time", "until", "rest_kinetic_energy", "rest_duration"}, "in [time]");
+    if (time->has("rest_kinetic_energy")) {
+      // Scenes written before issue 18: the mean kinetic energy per grain declared rest while a few
+      // grains still moved fast; the criterion is now on the grains' speeds, Z and contacts.
+      time->fail_key("rest_kinetic_energy",
+                     "replaced by rest_speed (m/s or \"auto\"): rest is now judged on the grains' speeds, the "
+                     "coordination number and the contacts (docs/scene-file.md, \"Stopping at rest\")");
+    }
+    time->allow_only({"dt", "theta", "end_time", "until", "rest_speed", "rest_quantile", "rest_coordination_change",
+                      "rest_contact_change", "rest_duration"},
+                     "in [time]");
     auto& integrator = scene_.run.step.integrator;
     RunOptions& run = scene_.run;
     run.automatic_time_step = is_auto(*time, "dt");
@@ -490,15 +499,21 @@ class SceneParser {
     integrator.theta = time->number_or("theta", 0.5, closed(0.5, 1.0));
     run.end_time = time->number("end_time", positive());
     run.until_rest = time->optional_choice("until", {"end_time", "rest"}).value_or("end_time") == "rest";
-    for (const std::string_view key : {"rest_kinetic_energy", "rest_duration"}) {
+    for (const std::string_view key :
+         {"rest_speed", "rest_quantile", "rest_coordination_change", "rest_contact_change", "rest_duration"}) {
       if (time->has(key) && !run.until_rest) {
         time->fail_key(key, "only used with until = \"rest\" (expected that key too, or no " + std::string(key) + ")");
       }
     }
-    run.automatic_rest_kinetic_energy = is_auto(*time, "rest_kinetic_energy") || !time->has("rest_kinetic_energy");
-    if (!run.automatic_rest_kinetic_energy) {
-      run.rest.mean_kinetic_energy = time->number("rest_kinetic_energy", positive());
+    run.automatic_rest_speed = is_auto(*time, "rest_speed") || !time->has("rest_speed");
+    if (!run.automatic_rest_speed) run.rest.speed = time->number("rest_speed", positive());
+    run.rest.quantile = time->number_or("rest_quantile", auto_rest_quantile, Range{0.0, 1.0, false, true});
+    run.automatic_rest_coordination_change =
+        is_auto(*time, "rest_coordination_change") || !time->has("rest_coordination_change");
+    if (!run.automatic_rest_coordination_change) {
+      run.rest.coordination_change = time->number("rest_coordination_change", non_negative());
     }
+    run.rest.contact_change = time->number_or("rest_contact_change", auto_rest_contact_change, closed(0.0, 1.0));
     run.automatic_rest_duration = is_auto(*time, "rest_duration") || !time->has("rest_duration");
     if (!run.automatic_rest_duration) run.rest.duration = time->number("rest_duration", non_negative());
     if (!run.automatic_time_step) check_step_count(*time);
@@ -548,11 +563,15 @@ class SceneParser {
     if (run.until_rest) {
       const SceneScales scales = scene_scales(scene_.model, scene_.state, run.step.gravity);
       try {
-        run.rest = automatic_rest_criterion(scales, run.automatic_rest_kinetic_energy ? 0.0 : run.rest.mean_kinetic_energy,
-                                            run.automatic_rest_duration ? 0.0 : run.rest.duration);
-        if (!run.automatic_rest_duration) run.rest.duration = time->number("rest_duration", non_negative());
+        const RestCriterion given = run.rest;
+        run.rest = automatic_rest_criterion(scales, run.automatic_rest_speed ? 0.0 : given.speed,
+                                            run.automatic_rest_duration ? 0.0 : given.duration);
+        run.rest.quantile = given.quantile;
+        if (!run.automatic_rest_coordination_change) run.rest.coordination_change = given.coordination_change;
+        run.rest.contact_change = given.contact_change;
+        if (!run.automatic_rest_duration) run.rest.duration = given.duration;  // 0 is a valid duration
       } catch (const std::invalid_argument& error) {
-        time->fail_key(run.automatic_rest_kinetic_energy ? "rest_kinetic_energy" : "rest_duration", error.what());
+        time->fail_key(run.automatic_rest_speed ? "rest_speed" : "rest_duration", error.what());
       }
     }
   }
@@ -1413,8 +1432,8 @@ seed = 1
 dt = "auto"                    # 1% of d_min over the free-fall velocity sqrt(2GM/R): 1.4 s here
 end_time = 12000.0             # s, the latest end (7 characteristic times 1/sqrt(G rho))
 until = "rest"                 # stop earlier, as soon as the grains are at rest:
-rest_kinetic_energy = "auto"   # mean kinetic energy per grain below 1e-3 x 1/2 m v_ff^2 ...
-rest_duration = "auto"         # ... for half a characteristic time 1/sqrt(G rho)
+rest_speed = "auto"            # 99% of the grains slower than 5% of v_ff (|v| + |w| r) ...
+rest_duration = "auto"         # ... while Z and the contacts hold still, for 1/sqrt(G rho)
 
 [gravity]
 type = "tree"
@@ -1463,9 +1482,13 @@ std::string scene_to_toml(const Scene& scene) {
   out << "end_time = " << format_number(run.end_time) << "\n";
   if (run.until_rest) {
     out << "until = \"rest\"\n";
-    out << "rest_kinetic_energy = "
-        << (run.automatic_rest_kinetic_energy ? std::string("\"auto\"") : format_number(run.rest.mean_kinetic_energy))
+    out << "rest_speed = " << (run.automatic_rest_speed ? std::string("\"auto\"") : format_number(run.rest.speed))
         << "\n";
+    out << "rest_quantile = " << format_number(run.rest.quantile) << "\n";
+    out << "rest_coordination_change = "
+        << (run.automatic_rest_coordination_change ? std::string("\"auto\"") : format_number(run.rest.coordination_change))
+        << "\n";
+    out << "rest_contact_change = " << format_number(run.rest.contact_change) << "\n";
     out << "rest_duration = "
         << (run.automatic_rest_duration ? std::string("\"auto\"") : format_number(run.rest.duration)) << "\n";
   }

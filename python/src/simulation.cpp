@@ -49,7 +49,9 @@ Simulation::Simulation(Scene scene, std::string scene_text, std::string scene_so
   free_inverse_mass_ = scene_.model.inverse_mass;
   free_inverse_inertia_ = scene_.model.inverse_inertia;
   rest_.criterion = scene_.run.rest;
+  rest_.armed = rest_starts_armed(scene_.model, state_);
   progress_.first_step = state_.step;
+  progress_.first_time = state_.time;
 }
 
 Simulation Simulation::from_checkpoint(const Checkpoint& checkpoint) {
@@ -66,11 +68,7 @@ Simulation Simulation::from_checkpoint(const Checkpoint& checkpoint) {
   simulation.workspace_.held_gravity = checkpoint.held_gravity;
   simulation.workspace_.held_gravity_step = checkpoint.held_gravity_step;
   simulation.progress_ = checkpoint.progress;
-  const RestWatch& saved = checkpoint.rest;
-  simulation.rest_.armed = saved.armed;
-  if (saved.below) simulation.rest_.below_since = saved.below_since;
-  simulation.rest_.history.assign(saved.history.begin(), saved.history.end());
-  simulation.rest_.decay_window = saved.decay_window;
+  restore_rest_watch(checkpoint.rest, simulation.rest_);
   return simulation;
 }
 
@@ -130,9 +128,8 @@ const StepReport& Simulation::advance() {
   progress_.wall_seconds += step_seconds;
 
   if (!record_ && !watch_rest_) return last_report_;
-  const double energy = kinetic_energy(scene_.model, state_);
   if (watch_rest_ && grain_count_ > 0) {
-    at_rest_ = rest_.update(state_.time, energy / static_cast<double>(grain_count_)) || at_rest_;
+    at_rest_ = rest_.update(rest_sample(scene_.model, state_, workspace_.contacts, scene_.run.rest.quantile)) || at_rest_;
   }
   if (record_) {
     const SeriesRow row = series_row(scene_.model, state_, last_report_, scene_.run.step.gravity, step_seconds, potential_energy_);
@@ -169,6 +166,7 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
   }
   record_first_step_ = state_.step;
   progress_.first_step = state_.step;
+  progress_.first_time = state_.time;
   potential_energy_.reset();  // the run loop's monitor starts afresh with the file
   progress_.snapshot_period = snapshot_period_;
   progress_.end_step = state_.step + steps_to(end_time);
@@ -221,12 +219,7 @@ std::filesystem::path Simulation::save_checkpoint(const std::filesystem::path& f
     }
     std::swap(scene_.state, state_);
   }
-  RestWatch rest;
-  rest.armed = rest_.armed;
-  rest.below = rest_.below_since.has_value();
-  rest.below_since = rest_.below_since.value_or(0.0);
-  rest.history.assign(rest_.history.begin(), rest_.history.end());
-  rest.decay_window = rest_.decay_window;
+  const RestWatch rest = save_rest_watch(rest_);
   const CheckpointView view{text,
                             scene_source_,
                             scene_.run.end_time,

@@ -317,7 +317,7 @@ TEST(DefaultScene, IsTheThousandSphereAccretionToRest) {
   EXPECT_EQ(scene.run.step.integrator.time_step,
             automatic_time_step(scene.model, scene.state, scene.run.step.gravity).time_step);
   EXPECT_TRUE(scene.run.until_rest);
-  EXPECT_GT(scene.run.rest.mean_kinetic_energy, 0.0);
+  EXPECT_GT(scene.run.rest.speed, 0.0);
   EXPECT_GT(scene.run.rest.duration, 0.0);
   for (std::size_t i = 0; i < 1000; ++i) {
     const double r = scene.model.sphere_radius(i);
@@ -494,15 +494,36 @@ TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
   EXPECT_EQ(automatic.run.step.integrator.time_step,
             automatic_time_step(automatic.model, automatic.state, automatic.run.step.gravity).time_step);
   EXPECT_TRUE(automatic.run.until_rest);
-  EXPECT_DOUBLE_EQ(automatic.run.rest.mean_kinetic_energy, automatic_rest_criterion(scales).mean_kinetic_energy);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.speed, automatic_rest_criterion(scales).speed);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.speed, auto_rest_speed_fraction * scales.rest_reference_velocity);
+  EXPECT_EQ(automatic.run.rest.quantile, 0.99);
+  EXPECT_DOUBLE_EQ(automatic.run.rest.coordination_change, 0.05 * std::sqrt(1000.0 / 64.0));  // 4^3 grains
+  EXPECT_EQ(automatic.run.rest.contact_change, 0.2);
   EXPECT_DOUBLE_EQ(automatic.run.rest.duration, automatic_rest_criterion(scales).duration);
   const Scene given = parse_scene(
-      cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_kinetic_energy = 2.5\nrest_duration = 0\n"),
+      cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_speed = 2.5\nrest_quantile = 1\n"
+                        "rest_coordination_change = 0.125\nrest_contact_change = 0.25\nrest_duration = 0\n"),
       "given.toml");
   EXPECT_FALSE(given.run.automatic_time_step);
   EXPECT_EQ(given.run.step.integrator.time_step, 0.5);
-  EXPECT_EQ(given.run.rest.mean_kinetic_energy, 2.5);
+  EXPECT_EQ(given.run.rest.speed, 2.5);
+  EXPECT_EQ(given.run.rest.quantile, 1.0);
+  EXPECT_EQ(given.run.rest.coordination_change, 0.125);
+  EXPECT_EQ(given.run.rest.contact_change, 0.25);
   EXPECT_EQ(given.run.rest.duration, 0.0);
+  // Written back and read again, the given thresholds stay.
+  const Scene again = parse_scene(scene_to_toml(given), "again.toml");
+  EXPECT_EQ(again.run.rest.speed, 2.5);
+  EXPECT_EQ(again.run.rest.quantile, 1.0);
+  EXPECT_EQ(again.run.rest.coordination_change, 0.125);
+  EXPECT_EQ(again.run.rest.contact_change, 0.25);
+  // The key of the old energy criterion says what replaced it.
+  try {
+    parse_scene(cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_kinetic_energy = 2.5\n"), "old.toml");
+    ADD_FAILURE() << "rest_kinetic_energy was accepted";
+  } catch (const SceneError& error) {
+    EXPECT_NE(std::string(error.what()).find("replaced by rest_speed"), std::string::npos) << error.what();
+  }
   const Scene fixed = parse_scene(cloud_scene(grid, "dt = 0.5\nend_time = 100.0\n"), "fixed.toml");
   EXPECT_FALSE(fixed.run.until_rest);
   // Written back, "auto" stays "auto" (and so gives the same step again).
