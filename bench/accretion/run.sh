@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Accretion benchmark (issue 5): the accretion study's clouds (seed 001) run to rest with
+# Accretion benchmark (issue 5): the accretion study's clouds (the LMGC90 accretion paper) run to rest with
 # dt = "auto" and until = "rest": wall and CPU time to rest, steps/s, the time split per stage and
 # the NLGS sweeps per step over the run.
 # Usage: bench/accretion/run.sh [BUILD_DIR] [CASE...]   (default build/release; cases below)
