@@ -3,12 +3,9 @@
 // can edit and run (docs/checkpoints.md, "Branching"). Materials, contact laws, solver, gravity and
 // output come from the run's scene; dt and the rest thresholds are the values the run used
 // ("auto" resolved), so that the exported scene goes on as the run would.
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
-#include <fstream>
 #include <iostream>
 
 #include "apps/commands.hpp"
@@ -78,20 +75,7 @@ int export_command(const ExportArguments& args) {
   } catch (const std::runtime_error& e) {
     return bad_input(e.what());
   }
-  if (args.output == "-") {
-    std::cout << text;
-    return exit_ok;
-  }
-  std::ofstream out(args.output, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) {
-    const int error = errno;
-    std::cerr << "rubble export: output failure: cannot write " << args.output << ": " << std::strerror(error) << "\n";
-    return exit_output_failure;
-  }
-  std::cerr << "rubble export: wrote " << args.output << "; run it with: rubble run " << args.output << "\n";
-  return exit_ok;
+  return write_scene_text("export", args.output, text);
 }
 
 }  // namespace

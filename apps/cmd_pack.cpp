@@ -10,9 +10,6 @@
 #include <array>
 #include <cmath>
 #include <fmt/format.h>
-#include <cerrno>
-#include <cstring>
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -52,20 +49,7 @@ int pack_command(const PackArguments& args) {
   } catch (const SceneError& e) {
     return bad_input(e.what());
   }
-  if (args.output == "-") {
-    std::cout << text;
-    return exit_ok;
-  }
-  std::ofstream out(args.output, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) {
-    const int error = errno;
-    std::cerr << "rubble pack: output failure: cannot write " << args.output << ": " << std::strerror(error) << "\n";
-    return exit_output_failure;
-  }
-  std::cerr << "rubble pack: wrote " << args.output << "; run it with: rubble run " << args.output << "\n";
-  return exit_ok;
+  return write_scene_text("pack", args.output, text);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // The `rubble` command line: one subcommand per file (cmd_<name>.cpp), registered in main.cpp.
 #include <CLI/CLI.hpp>
 
+#include <string>
+
 namespace rubble::apps {
 
 /// Exit codes shared by every subcommand.
@@ -12,6 +14,10 @@ enum ExitCode : int {
   exit_numerical_failure = 3,  ///< a non-finite or runaway result (run state, field, impulses, metrics)
   exit_output_failure = 4,     ///< the output could not be written (disk full, I/O error); see docs/exit-codes.md
 };
+
+/// Writes a scene file's text to `output` ("-": standard output) for the subcommand `command`
+/// (pack, export) and says how to run it; exit_output_failure with the reason if it cannot.
+int write_scene_text(const std::string& command, const std::string& output, const std::string& text);
 
 /// `rubble run [SCENE] [--out DIR]`: runs a scene (the built-in default without SCENE).
 void register_run_command(CLI::App& app);

@@ -192,6 +192,17 @@ struct RotatingProblem {
   void resist_rotation(std::size_t k, SweepResult& sums) { compact.rotation_step(k, sums); }
 };
 
+/// Reduced radius r_eff = r_a r_b / (r_a + r_b) of a contact's bodies from their volume-equivalent
+/// radii (a sphere's own radius), a grain's own radius against a wall: the radius the cohesive
+/// pull-off force and the rolling and twisting bounds scale with.
+double reduced_radius(const Model& model, std::size_t a, std::size_t b) {
+  const auto radius = [&](std::size_t body) { return std::cbrt(3.0 * model.volume[body] / (4.0 * std::numbers::pi)); };
+  if (model.is_fixed(a)) return radius(b);
+  if (model.is_fixed(b)) return radius(a);
+  const double ra = radius(a), rb = radius(b);
+  return ra * rb / (ra + rb);
+}
+
 /// Rolling and twisting resistance (ContactLaw::rolling_friction, twisting_friction) of the
 /// compact problem's sphere contacts: sphere-sphere and sphere-wall pairs whose law has it (a
 /// polyhedron resists rolling through its faces' several contact points). r_eff = r_a r_b /
@@ -204,20 +215,15 @@ void gather_rotations(const Model& model, const SweepPlan& plan, const ContactLi
     const std::size_t a = c.id.body_a, b = c.id.body_b;
     const ContactLaw& law = model.contact_laws.get(model.material[a], model.material[b]);
     if (!law.resists_rotation()) continue;
-    double compliance = 0.0, radius_sum = 0.0, radius_product = 1.0;
-    int spheres = 0;
+    double compliance = 0.0;
     bool polyhedron = false;
     for (const std::size_t body : {a, b}) {
       if (model.is_fixed(body)) continue;
       if (model.shape_kind[body] != ShapeKind::sphere) polyhedron = true;
-      const double radius = model.bounding_radius[body];  // a sphere's radius
       compliance += 1.0 / model.principal_inertia[body].x();
-      radius_sum += radius;
-      radius_product *= radius;
-      ++spheres;
     }
-    if (polyhedron || spheres == 0) continue;
-    const double reduced = spheres == 2 ? radius_product / radius_sum : radius_sum;
+    if (polyhedron || compliance == 0.0) continue;
+    const double reduced = reduced_radius(model, a, b);
     out.rotation_of_point[p] = static_cast<std::uint32_t>(out.rotation.size());
     out.rotation.push_back({compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, Vec3::Zero()});
   }
@@ -582,12 +588,6 @@ int polish_contacts(const Model& model, BodyCoupledProblem& coupled, const Solve
   return steps;
 }
 
-/// Volume-equivalent radius of a grain, m (infinite for a wall).
-double equivalent_radius(const Model& model, std::size_t body) {
-  if (model.is_fixed(body)) return std::numeric_limits<double>::infinity();
-  return std::cbrt(3.0 * model.volume[body] / (4.0 * std::numbers::pi));
-}
-
 /// Per contact point, c = F_c h / m: the cohesive impulse of its pair's law (ContactLaw::cohesion
 /// plus 2 pi W r_eff) shared by the pair's m points, so that a pair's pull-off force does not
 /// depend on how many points the detection gives a face-on-face contact. Cohesion holds while the
@@ -603,9 +603,7 @@ std::vector<double> cohesive_impulses(const Model& model, const ContactList& con
     while (last < contacts.size() && contacts[last].id.body_a == a && contacts[last].id.body_b == b) ++last;
     const ContactLaw& law = model.contact_laws.get(model.material[a], model.material[b]);
     if (law.cohesive()) {
-      const double ra = equivalent_radius(model, a), rb = equivalent_radius(model, b);
-      const double reduced = std::isinf(ra) ? rb : std::isinf(rb) ? ra : ra * rb / (ra + rb);
-      const double force = law.cohesion + 2.0 * std::numbers::pi * law.work_of_adhesion * reduced;
+      const double force = law.cohesion + 2.0 * std::numbers::pi * law.work_of_adhesion * reduced_radius(model, a, b);
       const double range = 1e-3 * std::min(model.bounding_radius[a], model.bounding_radius[b]);
       const double per_point = force * time_step / static_cast<double>(last - first);
       for (std::size_t k = first; k < last; ++k) out[k] = contacts[k].gap <= range ? per_point : 0.0;
@@ -810,11 +808,12 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   // Cohesion (ContactLaw::cohesion): the sweeps solve for the shifted impulse r~ = r + c e_n in
   // the plain Signorini-Coulomb cone, the constant -c e_n being part of the free motion; the
   // contacts hold r~ until the end of the solve (the polish works on the same shifted problem).
+  const bool cohesive = model.contact_laws.any_cohesive();
   visit_groups(plan, parallel, [&](std::size_t g) {
     const auto [first, last] = group_points(g);
     for (std::size_t p = first; p < last; ++p) {
       CompactProblem::Point& point = compact.points[p];
-      const double cohesive_impulse = contacts[plan.order[p]].cohesive_impulse;
+      const double cohesive_impulse = cohesive ? contacts[plan.order[p]].cohesive_impulse : 0.0;
       Vec3& r = point.impulse;
       r.x() += cohesive_impulse;
       r = project_onto_coulomb_cone(r, point.friction_coefficient);
@@ -903,7 +902,9 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   }
   const double scale_squared = free_norm_squared + impulse_squared;
   stats.residual = scale_squared > 0.0 ? std::sqrt(residual_squared / scale_squared) : std::sqrt(residual_squared);
-  for (Contact& c : contacts) c.impulse.x() -= c.cohesive_impulse;  // back from r~ to r
+  if (cohesive) {
+    for (Contact& c : contacts) c.impulse.x() -= c.cohesive_impulse;  // back from r~ to r
+  }
   stats.sweep_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return stats;
 }

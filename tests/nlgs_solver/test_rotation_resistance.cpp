@@ -14,6 +14,28 @@ using testing::TestScene;
 constexpr double g = 9.81;
 constexpr double radius = 0.05;  // m
 
+/// A sphere of radius `radius` touching a plane through the origin with normal `normal`, h = 1 ms,
+/// the contact law mu = 0.8 (enough to roll without slipping) with rolling and twisting friction
+/// `mu_r`, `mu_t`. The sphere is body `ball` of the returned scene, at rest.
+struct SphereOnAPlane {
+  TestScene scene{2500.0, 0.8, 0.0};
+  std::size_t ball = 0;
+  Vec3 start;  ///< the sphere's initial position
+};
+SphereOnAPlane sphere_on_a_plane(const Vec3& normal, double mu_r, double mu_t) {
+  SphereOnAPlane s;
+  s.scene.uniform_gravity(g);
+  s.scene.options.integrator.time_step = 1e-3;
+  ContactLaw law{0.8, 0.0};
+  law.rolling_friction = mu_r;
+  law.twisting_friction = mu_t;
+  s.scene.model.contact_laws.reset(1, law);
+  s.scene.plane(Vec3::Zero(), normal);
+  s.start = radius * normal;
+  s.ball = static_cast<std::size_t>(s.scene.sphere(radius, s.start));
+  return s;
+}
+
 /// A sphere at rest on a plane through the origin tilted by `alpha` about x, Coulomb mu = 0.8
 /// (enough to roll without slipping below tan(alpha) = 2.8 mu / 1 for a rolling sphere) and
 /// rolling friction `mu_r`. Returns the downhill velocity after `seconds` and the displacement.
@@ -23,22 +45,14 @@ struct Roll {
   double spin = 0.0;          ///< rad/s, about the axis of rolling
 };
 Roll roll_down(double alpha, double mu_r, double seconds) {
-  TestScene s(2500.0, 0.8, 0.0);
-  s.uniform_gravity(g);
-  s.options.integrator.time_step = 1e-3;
-  ContactLaw law{0.8, 0.0};
-  law.rolling_friction = mu_r;
-  s.model.contact_laws.reset(1, law);
   const Quat tilt(Eigen::AngleAxisd(alpha, Vec3::UnitX()));
   const Vec3 normal = tilt * Vec3::UnitZ();
-  s.plane(Vec3::Zero(), normal);
-  const Vec3 start = radius * normal;
-  const int ball = s.sphere(radius, start);
-  s.run(seconds);
-  const auto b = static_cast<std::size_t>(ball);
+  SphereOnAPlane s = sphere_on_a_plane(normal, mu_r, 0.0);
+  s.scene.run(seconds);
+  const State& state = s.scene.state;
   const Vec3 downhill = -(tilt * Vec3::UnitY());
-  return {s.state.velocity[b].dot(downhill), (s.state.position[b] - start).norm(),
-          s.state.angular_velocity[b].dot(normal.cross(downhill))};
+  return {state.velocity[s.ball].dot(downhill), (state.position[s.ball] - s.start).norm(),
+          state.angular_velocity[s.ball].dot(normal.cross(downhill))};
 }
 
 // Reference: at rest, friction f = m g sin(alpha) holds the sphere, and its torque f r must be
@@ -71,19 +85,13 @@ TEST(RotationResistance, SphereOnAnInclineStopsBelowTanAlphaEqualMuR) {
 TEST(RotationResistance, RollingSphereStopsAtTheClosedFormDistance) {
   const double mu_r = 0.05, v0 = 1.0;
   auto run = [&](double seconds, double& distance) {
-    TestScene s(2500.0, 0.8, 0.0);
-    s.uniform_gravity(g);
-    s.options.integrator.time_step = 1e-3;
-    ContactLaw law{0.8, 0.0};
-    law.rolling_friction = mu_r;
-    s.model.contact_laws.reset(1, law);
-    s.plane(Vec3::Zero(), Vec3::UnitZ());
-    const int ball = s.sphere(radius, Vec3(0, 0, radius), Vec3(v0, 0, 0));
-    const auto b = static_cast<std::size_t>(ball);
-    s.state.angular_velocity[b] = Vec3(0, v0 / radius, 0);  // rolling: v = omega x (-r e_z)
-    s.run(seconds);
-    distance = s.state.position[b].x();
-    return s.state.velocity[b].x();
+    SphereOnAPlane s = sphere_on_a_plane(Vec3::UnitZ(), mu_r, 0.0);
+    State& state = s.scene.state;
+    state.velocity[s.ball] = Vec3(v0, 0, 0);
+    state.angular_velocity[s.ball] = Vec3(0, v0 / radius, 0);  // rolling: v = omega x (-r e_z)
+    s.scene.run(seconds);
+    distance = state.position[s.ball].x();
+    return state.velocity[s.ball].x();
   };
   double d1 = 0.0, d4 = 0.0;
   const double v1 = run(1.0, d1);
@@ -105,19 +113,12 @@ TEST(RotationResistance, RollingSphereStopsAtTheClosedFormDistance) {
 TEST(RotationResistance, SpinningSphereStopsAtTheTwistingRate) {
   const double mu_t = 0.1, omega0 = 20.0;
   auto run = [&](double seconds, double& moved) {
-    TestScene s(2500.0, 0.8, 0.0);
-    s.uniform_gravity(g);
-    s.options.integrator.time_step = 1e-3;
-    ContactLaw law{0.8, 0.0};
-    law.twisting_friction = mu_t;
-    s.model.contact_laws.reset(1, law);
-    s.plane(Vec3::Zero(), Vec3::UnitZ());
-    const int ball = s.sphere(radius, Vec3(0, 0, radius));
-    const auto b = static_cast<std::size_t>(ball);
-    s.state.angular_velocity[b] = Vec3(0, 0, omega0);
-    s.run(seconds);
-    moved = (s.state.position[b] - Vec3(0, 0, radius)).norm();
-    return s.state.angular_velocity[b].z();
+    SphereOnAPlane s = sphere_on_a_plane(Vec3::UnitZ(), 0.0, mu_t);
+    State& state = s.scene.state;
+    state.angular_velocity[s.ball] = Vec3(0, 0, omega0);
+    s.scene.run(seconds);
+    moved = (state.position[s.ball] - s.start).norm();
+    return state.angular_velocity[s.ball].z();
   };
   double moved = 0.0, moved_end = 0.0;
   const double at_02 = run(0.2, moved);
