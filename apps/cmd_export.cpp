@@ -43,6 +43,14 @@ int export_command(const ExportArguments& args) {
                                    *mismatch));
     }
     const RunReader reader = RunReader::open(source.path);
+    // The bodies as the run file holds them; the prescribed motions of driven bodies (not in the
+    // run file) from the run's scene, on the exported scene's clock, which starts again at 0.
+    saved.model.motion_of_body = scene.model.motion_of_body;
+    saved.model.prescribed_motions = scene.model.prescribed_motions;
+    saved.model.driven_bodies = scene.model.driven_bodies;
+    for (PrescribedMotion& motion : saved.model.prescribed_motions) {
+      for (double& t : motion.time) t -= saved.state.time;
+    }
     scene.model = saved.model;
     const double time = saved.state.time;
     const std::int64_t step = saved.state.step;

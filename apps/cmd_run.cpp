@@ -229,6 +229,15 @@ int run_command(const RunArguments& args) {
                                      saved.description, control.scene_source, *mismatch));
       }
       scene.state = std::move(saved.state);
+      // The scene's driving acts on the branch: driven bodies take their prescribed velocities at
+      // the saved time, and [[initial_conditions]] add their rigid motions to the saved velocities
+      // (an aggregate at rest set spinning).
+      set_prescribed_velocities(scene.model, scene.state);
+      if (const auto k = apply_initial_conditions(scene.model, scene.initial_conditions, scene.state)) {
+        return bad_input(fmt::format("--from {}: [[initial_conditions]] entry {} of {} selects no grain of the saved "
+                                     "state",
+                                     args.from, *k + 1, control.scene_source));
+      }
       branch_description = saved.description;
     } catch (const BranchError& e) {
       return bad_input(std::string("--from: ") + e.what());

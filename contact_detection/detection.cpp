@@ -186,6 +186,8 @@ void collide_pair(const Model& model, const State& state, const BodyPair& pair, 
   if (model.is_grain(a) && !model.is_grain(b)) std::swap(a, b);
   const ShapeKind kind_a = model.shape_kind[a];
   const ShapeKind kind_b = model.shape_kind[b];
+  // Two bodies of infinite mass (walls, driven bodies) never interact: nothing could move either.
+  if (model.is_fixed(a) && model.is_fixed(b)) return;
   [[maybe_unused]] const Vec3* previous = memory.find(pair);
   if (kind_a == ShapeKind::sphere && kind_b == ShapeKind::sphere) {
     collide_sphere_sphere(model, state, a, b, alert_distance, contacts);
@@ -225,6 +227,12 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
     const double limit = 0.25 * margin * margin;
     for (std::size_t b = 0; b < state.body_count() && !rebuild; ++b) {
       rebuild = (state.position[b] - memory.pair_list_positions[b]).squaredNorm() >= limit;
+    }
+    // A turning wall (a driven one) sweeps its far parts by more than its displacement: a grain's
+    // bounding sphere turns with it, a wall's plane or box does not, so its pairs are found afresh.
+    for (std::size_t k = 0; k < model.driven_bodies.size() && !rebuild; ++k) {
+      const std::size_t b = model.driven_bodies[k];
+      rebuild = !model.is_grain(b) && state.angular_velocity[b].squaredNorm() > 0.0;
     }
   }
   if (rebuild) {

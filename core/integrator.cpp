@@ -30,7 +30,7 @@ void drift_to_midpoint(const Model& model, const IntegratorOptions& options, Sta
 #pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
-    if (model.is_fixed(b)) continue;
+    if (model.is_fixed(b) && !model.is_driven(b)) continue;  // a still wall
     state.position[b] += drift * state.velocity[b];
     // The exponential map keeps the orientation on the unit sphere; renormalise against round-off.
     state.orientation[b] = (quaternion_exp(drift * state.angular_velocity[b]) * state.orientation[b]).normalized();
@@ -48,8 +48,11 @@ void compute_free_velocity(const Model& model, const State& state, std::span<con
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
     if (model.is_fixed(b)) {
-      free_velocity.linear[b] = Vec3::Zero();
-      free_velocity.angular[b] = Vec3::Zero();
+      // Infinite mass: no force changes it. A driven body has its prescribed velocity at the end
+      // of the step, which the contacts then see (it pushes grains, they do not push it).
+      const RigidVelocity v = model.is_driven(b) ? model.driven_velocity(b, state.time + h) : RigidVelocity{};
+      free_velocity.linear[b] = v.linear;
+      free_velocity.angular[b] = v.angular;
       continue;
     }
     free_velocity.linear[b] = state.velocity[b] + h * model.inverse_mass[b] * force[b];
@@ -75,7 +78,7 @@ void finish_step(const Model& model, const IntegratorOptions& options, const Bod
 #pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     const auto b = static_cast<std::size_t>(i);
-    if (model.is_fixed(b)) continue;
+    if (model.is_fixed(b) && !model.is_driven(b)) continue;  // a still wall
     Vec3 translation = drift * velocity.linear[b];
     Vec3 rotation = drift * velocity.angular[b];
     if (displaced) {

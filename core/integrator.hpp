@@ -43,14 +43,18 @@ struct BodyVelocities {
 /// for theta = 1 the energy decays (backward Euler in the rotation), it never grows.
 Vec3 torque_free_rotation(const Vec3& inertia, const Vec3& omega, double time_step, double theta);
 
-/// Stage "drift_to_midpoint": moves every free body to q_m = q_n + (1 - theta) h v_n (position and
-/// orientation); velocities, time and step are left as they are (still those of t_n).
+/// Stage "drift_to_midpoint": moves every free or driven body (Model::is_driven) to
+/// q_m = q_n + (1 - theta) h v_n (position and orientation); velocities, time and step are left as
+/// they are (still those of t_n).
 void drift_to_midpoint(const Model& model, const IntegratorOptions& options, State& state);
 
 /// Free velocity: the velocity at the end of the step if no contact acted. `state` holds the
 /// midpoint configuration q_m and the velocities v_n; `force` and `torque` (world frame, N and N m)
 /// are the external actions at q_m, one per body; `torque` may be empty. Non-spherical bodies turn
-/// by `torque_free_rotation` (implicit gyroscopic term), then the torque impulse is added.
+/// by `torque_free_rotation` (implicit gyroscopic term), then the torque impulse is added. Bodies of
+/// infinite mass get zero, or a driven body its prescribed velocity at t_{n+1}: with theta = 1/2 its
+/// position then advances by h (v(t_n) + v(t_{n+1})) / 2, the trapezoidal rule, exact for a
+/// velocity linear over the step.
 void compute_free_velocity(const Model& model, const State& state, std::span<const Vec3> force,
                            std::span<const Vec3> torque, const IntegratorOptions& options,
                            BodyVelocities& free_velocity);

@@ -1,5 +1,6 @@
 #include "core/model.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
@@ -18,6 +19,7 @@ int push_body(Model& model, ShapeKind kind, int shape_index, int material, doubl
   model.inverse_inertia.push_back(mass > 0.0 ? Vec3(inertia.cwiseInverse()) : Vec3::Zero());
   model.bounding_radius.push_back(bounding_radius);
   model.volume.push_back(volume);
+  model.motion_of_body.push_back(-1);
   return static_cast<int>(model.shape_kind.size()) - 1;
 }
 
@@ -59,6 +61,45 @@ int add_polyhedron(Model& model, ConvexPolyhedron shape, double volume, const Ve
   model.polyhedra.push_back(std::move(shape));
   return push_body(model, ShapeKind::polyhedron, static_cast<int>(model.polyhedra.size()) - 1, material,
                    density * volume, density * principal_inertia_per_density, bounding_radius, volume);
+}
+
+RigidVelocity prescribed_velocity(const PrescribedMotion& motion, double time) {
+  const std::vector<double>& t = motion.time;
+  if (t.size() == 1 || time <= t.front()) return {motion.velocity.front(), motion.angular_velocity.front()};
+  if (time >= t.back()) return {motion.velocity.back(), motion.angular_velocity.back()};
+  // The knot interval holding `time`: t[k - 1] <= time < t[k].
+  const auto k = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), time) - t.begin());
+  const double s = (time - t[k - 1]) / (t[k] - t[k - 1]);
+  return {(1.0 - s) * motion.velocity[k - 1] + s * motion.velocity[k],
+          (1.0 - s) * motion.angular_velocity[k - 1] + s * motion.angular_velocity[k]};
+}
+
+void drive_body(Model& model, int body, PrescribedMotion motion) {
+  if (body < 0 || static_cast<std::size_t>(body) >= model.body_count()) throw std::invalid_argument("body id out of range");
+  const std::size_t knots = motion.time.size();
+  if (knots == 0 || motion.velocity.size() != knots || motion.angular_velocity.size() != knots) {
+    throw std::invalid_argument("a prescribed motion needs one velocity and one angular velocity per knot");
+  }
+  for (std::size_t k = 1; k < knots; ++k) {
+    if (!(motion.time[k] > motion.time[k - 1])) throw std::invalid_argument("the knots' times must increase");
+  }
+  const auto b = static_cast<std::size_t>(body);
+  if (model.is_driven(b)) throw std::invalid_argument("body already driven");
+  model.mass[b] = 0.0;
+  model.inverse_mass[b] = 0.0;
+  model.principal_inertia[b] = Vec3::Zero();
+  model.inverse_inertia[b] = Vec3::Zero();
+  model.motion_of_body[b] = static_cast<int>(model.prescribed_motions.size());
+  model.prescribed_motions.push_back(std::move(motion));
+  model.driven_bodies.insert(std::upper_bound(model.driven_bodies.begin(), model.driven_bodies.end(), b), b);
+}
+
+void set_prescribed_velocities(const Model& model, State& state) {
+  for (const std::size_t b : model.driven_bodies) {
+    const RigidVelocity v = model.driven_velocity(b, state.time);
+    state.velocity[b] = v.linear;
+    state.angular_velocity[b] = v.angular;
+  }
 }
 
 }  // namespace rubble

@@ -7,6 +7,7 @@
 
 #include "core/math.hpp"
 #include "core/shapes.hpp"
+#include "core/state.hpp"
 
 namespace rubble {
 
@@ -74,6 +75,26 @@ struct ContactLawTable {
   }
 };
 
+/// A prescribed rigid motion (a driven body: a moving wall, a plate, an impactor): the velocity of
+/// the body's reference point (a grain's centre of mass, a plane's point, a box's centre) and its
+/// angular velocity about that point, as functions of time. Linear between the knots, held at the
+/// first knot's value before it and at the last one's after it; one knot is a constant motion.
+/// A driven body pushes grains but is not pushed: the solver sees it with infinite mass, as a wall.
+struct PrescribedMotion {
+  std::vector<double> time;            ///< s (the run's clock, State::time), strictly increasing
+  std::vector<Vec3> velocity;          ///< m/s, world frame, one per knot
+  std::vector<Vec3> angular_velocity;  ///< rad/s, world frame, one per knot
+};
+
+/// A rigid body's velocity: of its reference point, and its angular velocity.
+struct RigidVelocity {
+  Vec3 linear = Vec3::Zero();   ///< m/s
+  Vec3 angular = Vec3::Zero();  ///< rad/s
+};
+
+/// The prescribed velocity at `time`, s (linear interpolation between knots, held outside them).
+RigidVelocity prescribed_velocity(const PrescribedMotion& motion, double time);
+
 /// The immutable part of a scene. Per-body data is stored as structure of arrays, indexed by
 /// body id; walls are bodies with zero inverse mass and inertia.
 struct Model {
@@ -87,6 +108,9 @@ struct Model {
   std::vector<Vec3> inverse_inertia;     ///< 1/(kg m^2), body frame (0 for walls)
   std::vector<double> bounding_radius;   ///< m, radius of the sphere around the body origin (inf for planes)
   std::vector<double> volume;            ///< m^3 (0 for walls)
+  /// Index into prescribed_motions of a driven body (its velocity is prescribed), -1 for a free
+  /// grain or a still wall. Driven bodies also have zero inverse mass and inertia (is_fixed).
+  std::vector<int> motion_of_body;
 
   // --- shape tables ---
   std::vector<Sphere> spheres;              ///< sphere shapes
@@ -94,14 +118,23 @@ struct Model {
   std::vector<Plane> planes;                ///< plane walls
   std::vector<Box> boxes;                   ///< box walls
 
+  std::vector<PrescribedMotion> prescribed_motions;  ///< the motions of driven bodies
+  std::vector<std::size_t> driven_bodies;            ///< body ids of the driven bodies, increasing
+
   // --- materials and contact laws ---
   std::vector<Material> materials;  ///< by material id
   ContactLawTable contact_laws;     ///< by material pair
 
   /// Number of bodies, walls included.
   std::size_t body_count() const { return shape_kind.size(); }
-  /// True for walls: bodies that never move (infinite mass).
+  /// True for bodies of infinite mass, which contact impulses never move: walls and driven bodies.
   bool is_fixed(std::size_t body) const { return inverse_mass[body] == 0.0; }
+  /// True for a driven body: it moves with its PrescribedMotion (walls without one stay still).
+  bool is_driven(std::size_t body) const { return body < motion_of_body.size() && motion_of_body[body] >= 0; }
+  /// The prescribed velocity of a driven body at `time`, s.
+  RigidVelocity driven_velocity(std::size_t body, double time) const {
+    return prescribed_velocity(prescribed_motions[static_cast<std::size_t>(motion_of_body[body])], time);
+  }
   /// True for grains (sphere or polyhedron).
   bool is_grain(std::size_t body) const {
     return shape_kind[body] == ShapeKind::sphere || shape_kind[body] == ShapeKind::polyhedron;
@@ -120,6 +153,15 @@ int add_box_wall(Model& model, const Vec3& half_extents, int material);
 /// mass properties given by the caller; returns its body id.
 int add_polyhedron(Model& model, ConvexPolyhedron shape, double volume, const Vec3& principal_inertia_per_density,
                    int material);
+
+/// Makes `body` a driven body moving with `motion` (checked: knots increasing, one velocity per
+/// knot): its mass, inertia and their inverses become 0, the solver's infinite mass. Throws
+/// std::invalid_argument on a malformed motion.
+void drive_body(Model& model, int body, PrescribedMotion motion);
+
+/// Sets the velocities of the driven bodies in `state` to their prescribed values at state.time
+/// (a scene's start, or the state a branch starts from).
+void set_prescribed_velocities(const Model& model, State& state);
 
 /// World-frame inverse inertia tensor R diag(I^-1) R^T of a body with the given orientation.
 inline Mat3 world_inverse_inertia(const Model& model, std::size_t body, const Quat& orientation) {

@@ -28,6 +28,15 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
     scales.min_diameter = std::min(scales.min_diameter, 2.0 * model.bounding_radius[b]);
     max_speed = std::max(max_speed, state.velocity[b].norm());
   }
+  // A driven body moves grains as fast as it goes: its fastest prescribed speed at any knot (a
+  // turning grain's or box's rim included; a turning plane has no rim) counts as a grain's.
+  for (const std::size_t b : model.driven_bodies) {
+    const PrescribedMotion& motion = model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[b])];
+    const double rim = std::isfinite(model.bounding_radius[b]) ? model.bounding_radius[b] : 0.0;
+    for (std::size_t k = 0; k < motion.time.size(); ++k) {
+      max_speed = std::max(max_speed, motion.velocity[k].norm() + rim * motion.angular_velocity[k].norm());
+    }
+  }
   if (scales.grains == 0) {
     scales.min_diameter = 0.0;
     scales.characteristic_time = infinity;

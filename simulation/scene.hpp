@@ -5,6 +5,7 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "simulation/initial_conditions.hpp"
 #include "simulation/run_control.hpp"
 #include "simulation/step.hpp"
 
@@ -46,6 +47,9 @@ struct Scene {
   Model model;                 ///< shapes, masses, materials, contact laws
   State state;                 ///< initial positions and velocities
   RunOptions run;              ///< time stepping, solver, output
+  /// The scene's [[initial_conditions]], already applied to `state`; kept to be applied again to
+  /// the state a branch starts from (`rubble run SCENE --from RUN`).
+  std::vector<InitialCondition> initial_conditions;
 };
 
 }  // namespace rubble

@@ -403,6 +403,7 @@ struct GrainSpec {
   Quat orientation = Quat::Identity();
   Vec3 velocity = Vec3::Zero();
   Vec3 angular_velocity = Vec3::Zero();
+  int motion = -1;  ///< index into the parser's prescribed motions for a driven grain, else -1
   GrainOrigin origin{};
 };
 
@@ -414,6 +415,7 @@ struct WallSpec {
   Vec3 half_extents = Vec3::Zero();   ///< box only
   Quat orientation = Quat::Identity();
   int material = 0;
+  std::optional<PrescribedMotion> motion;  ///< set for a moving wall
   std::string path;
   const toml::node* node = nullptr;
 };
@@ -452,7 +454,7 @@ class SceneParser {
 
   Scene parse(const std::string& default_name) {
     root_.allow_only({"name", "seed", "time", "solver", "detection", "gravity", "output", "materials",
-                      "contact_laws", "default_contact_law", "walls", "bodies", "generators"},
+                      "contact_laws", "default_contact_law", "walls", "bodies", "generators", "initial_conditions"},
                      "at the top level");
     scene_.name = root_.optional_string("name").value_or(default_name);
     scene_.run.seed = static_cast<std::uint64_t>(root_.integer_or("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
@@ -466,6 +468,7 @@ class SceneParser {
     parse_walls();
     parse_bodies();
     parse_generators();
+    parse_initial_conditions();
     if (grains_.empty()) {
       root_.fail(nullptr, "", "the scene has no grains: expected at least one [[bodies]] or [[generators]] entry");
     }
@@ -789,7 +792,8 @@ class SceneParser {
       wall.node = entry.anchor();
       const std::string type = entry.choice("type", {"plane", "box"});
       if (type == "plane") {
-        entry.allow_only({"type", "point", "normal", "material"}, "for a wall of type = \"plane\"");
+        entry.allow_only({"type", "point", "normal", "material", "velocity", "angular_velocity", "motion"},
+                         "for a wall of type = \"plane\"");
         wall.is_plane = true;
         wall.position = entry.vec3("point", coordinate());
         const Vec3 normal = entry.vec3("normal");
@@ -799,14 +803,92 @@ class SceneParser {
         }
         wall.normal = normal / norm;
       } else {
-        entry.allow_only({"type", "center", "half_extents", "orientation", "material"}, "for a wall of type = \"box\"");
+        entry.allow_only({"type", "center", "half_extents", "orientation", "material", "velocity", "angular_velocity",
+                          "motion"},
+                         "for a wall of type = \"box\"");
         wall.is_plane = false;
         wall.position = entry.vec3("center", coordinate());
         wall.half_extents = entry.vec3("half_extents", length());
         wall.orientation = entry.orientation_or_identity("orientation");
       }
       wall.material = material_of(entry);
+      // A wall moves when given a velocity, an angular velocity or a motion table.
+      if (entry.has("motion") || entry.has("velocity") || entry.has("angular_velocity")) wall.motion = parse_motion(entry);
       walls_.push_back(wall);
+    }
+  }
+
+  /// The prescribed motion of a driven wall or body: `motion`, a table of rows
+  /// [t, vx, vy, vz] or [t, vx, vy, vz, wx, wy, wz] (s, m/s, rad/s; times increasing; linear in
+  /// between, held outside), or else the constant `velocity` and `angular_velocity`.
+  PrescribedMotion parse_motion(const TableReader& entry) const {
+    PrescribedMotion motion;
+    const toml::node* node = entry.get("motion");
+    if (!node) {
+      motion.time = {0.0};
+      motion.velocity = {entry.vec3_or("velocity", Vec3::Zero())};
+      motion.angular_velocity = {entry.vec3_or("angular_velocity", Vec3::Zero())};
+      return motion;
+    }
+    for (const std::string_view key : {"velocity", "angular_velocity"}) {
+      if (entry.has(key)) {
+        entry.fail_key(key, "give either a motion table or a constant velocity and angular_velocity, not both (the "
+                            "table's rows hold the velocities)");
+      }
+    }
+    const auto* rows = node->as_array();
+    if (!rows || rows->empty()) {
+      entry.fail(node, entry.key_path("motion"),
+                 "expected an array of rows [t, vx, vy, vz] or [t, vx, vy, vz, wx, wy, wz], got " + describe_node(*node));
+    }
+    for (std::size_t i = 0; i < rows->size(); ++i) {
+      const std::string path = entry.key_path("motion") + "[" + std::to_string(i) + "]";
+      const auto* row = rows->get(i)->as_array();
+      if (!row || (row->size() != 4 && row->size() != 7)) {
+        entry.fail(rows->get(i), path,
+                   "expected a row [t, vx, vy, vz] or [t, vx, vy, vz, wx, wy, wz] (s, m/s, rad/s), got " +
+                       describe_node(*rows->get(i)));
+      }
+      double values[7] = {0, 0, 0, 0, 0, 0, 0};
+      for (std::size_t k = 0; k < row->size(); ++k) values[k] = entry.number_of(*row->get(k), path, any_number());
+      if (!motion.time.empty() && !(values[0] > motion.time.back())) {
+        entry.fail(rows->get(i), path,
+                   "expected times increasing row by row, got t = " + show(values[0]) + " s after " +
+                       show(motion.time.back()) + " s");
+      }
+      motion.time.push_back(values[0]);
+      motion.velocity.emplace_back(values[1], values[2], values[3]);
+      motion.angular_velocity.emplace_back(values[4], values[5], values[6]);
+    }
+    return motion;
+  }
+
+  void parse_initial_conditions() {
+    for (const TableReader& entry : root_.tables("initial_conditions")) {
+      entry.allow_only({"velocity", "angular_velocity", "center", "material", "region_min", "region_max"},
+                       "in [[initial_conditions]]");
+      if (!entry.has("velocity") && !entry.has("angular_velocity")) {
+        entry.fail_table("expected velocity = [vx, vy, vz] (m/s) and/or angular_velocity = [wx, wy, wz] (rad/s)");
+      }
+      InitialCondition condition;
+      condition.velocity = entry.vec3_or("velocity", Vec3::Zero());
+      condition.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
+      condition.centre = entry.optional_vector<3>("center", coordinate());
+      if (entry.has("material")) condition.material = material_of(entry);
+      if (entry.has("region_min") != entry.has("region_max")) {
+        entry.fail_key(entry.has("region_min") ? "region_min" : "region_max",
+                       "expected both region_min and region_max (the corners of the box the grains' centres lie in)");
+      }
+      if (entry.has("region_min")) {
+        condition.region_min = entry.vec3("region_min", coordinate());
+        condition.region_max = entry.vec3("region_max", coordinate());
+        if ((condition.region_max->array() < condition.region_min->array()).any()) {
+          entry.fail_key("region_max", "expected region_max >= region_min on every axis, got " +
+                                           show_vec3(*condition.region_max) + " vs " + show_vec3(*condition.region_min));
+        }
+      }
+      scene_.initial_conditions.push_back(condition);
+      condition_nodes_.push_back(entry.anchor());
     }
   }
 
@@ -819,7 +901,8 @@ class SceneParser {
       if (shape == "polyhedron") {
         parse_polyhedron_body(entry, grain);
       } else {
-        entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material"},
+        entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material",
+                          "driven", "motion"},
                          "for a body of shape = \"sphere\"");
         grain.radius = entry.number("radius", positive());
         grain.position = entry.vec3("position", coordinate());
@@ -828,6 +911,12 @@ class SceneParser {
       grain.velocity = entry.vec3_or("velocity", Vec3::Zero());
       grain.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
       grain.material = material_of(entry);
+      const bool driven = entry.boolean_or("driven", entry.has("motion"));
+      if (entry.has("motion") && !driven) entry.fail_key("driven", "a body with a motion table is driven: expected true");
+      if (driven) {
+        grain.motion = static_cast<int>(grain_motions_.size());
+        grain_motions_.push_back(parse_motion(entry));
+      }
       grain.origin.body_entry = static_cast<int>(i);
       grain.origin.node = entry.anchor();
       add_grain(grain);
@@ -853,8 +942,8 @@ class SceneParser {
   /// faces, or random. position/orientation place the file's (or the listed vertices') frame;
   /// for a random polyhedron, they are the centroid and the principal frame.
   void parse_polyhedron_body(const TableReader& entry, GrainSpec& grain) {
-    const std::vector<std::string_view> placement = {"shape", "position", "orientation", "velocity", "angular_velocity",
-                                                     "material"};
+    const std::vector<std::string_view> placement = {"shape",    "position", "orientation", "velocity",
+                                                     "angular_velocity", "material", "driven",      "motion"};
     const auto with = [&](std::initializer_list<std::string_view> more) {
       std::vector<std::string_view> keys = placement;
       keys.insert(keys.end(), more);
@@ -1330,6 +1419,17 @@ class SceneParser {
       state.position[grains_.size() + k] = walls_[k].position;
       state.orientation[grains_.size() + k] = walls_[k].orientation;
     }
+    for (std::size_t i = 0; i < grains_.size(); ++i) {
+      if (grains_[i].motion >= 0) drive_body(model, static_cast<int>(i), grain_motions_[static_cast<std::size_t>(grains_[i].motion)]);
+    }
+    for (std::size_t k = 0; k < walls_.size(); ++k) {
+      if (walls_[k].motion) drive_body(model, static_cast<int>(grains_.size() + k), *walls_[k].motion);
+    }
+    set_prescribed_velocities(model, state);
+    if (const auto k = apply_initial_conditions(model, scene_.initial_conditions, state)) {
+      root_.fail(condition_nodes_[*k], "initial_conditions[" + std::to_string(*k) + "]",
+                 "selects no grain (no free grain of its material has its centre in its region)");
+    }
   }
 
   const std::string& file_;
@@ -1340,6 +1440,8 @@ class SceneParser {
   std::vector<bool> law_defined_;
   std::vector<WallSpec> walls_;
   std::vector<GrainSpec> grains_;
+  std::vector<PrescribedMotion> grain_motions_;     ///< of the driven [[bodies]]
+  std::vector<const toml::node*> condition_nodes_;  ///< of the [[initial_conditions]] entries
 };
 
 // --- writing ---
@@ -1364,6 +1466,31 @@ std::string toml_string(const std::string& s) {
     }
   }
   return out + "\"";
+}
+
+/// The keys of a driven body's prescribed motion (a constant one as velocity and
+/// angular_velocity, a table as motion = [[t, vx, vy, vz, wx, wy, wz], ...]), or of a free
+/// grain's velocities; each line ends with a newline.
+std::string motion_keys(const Model& model, const State& state, std::size_t body) {
+  std::string out;
+  if (model.is_driven(body) && model.is_grain(body)) out += "driven = true\n";
+  if (!model.is_driven(body) || model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[body])].time.size() == 1) {
+    const RigidVelocity v = model.is_driven(body) ? model.driven_velocity(body, state.time)
+                                                  : RigidVelocity{state.velocity[body], state.angular_velocity[body]};
+    if (!model.is_grain(body) && v.linear == Vec3::Zero() && v.angular == Vec3::Zero()) return out;
+    return out + "velocity = " + format_vec3(v.linear) + "\nangular_velocity = " + format_vec3(v.angular) + "\n";
+  }
+  const PrescribedMotion& motion = model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[body])];
+  out += "motion = [";
+  for (std::size_t k = 0; k < motion.time.size(); ++k) {
+    const Vec3& v = motion.velocity[k];
+    const Vec3& w = motion.angular_velocity[k];
+    out += (k ? ",\n  [" : "\n  [") + format_number(motion.time[k]);
+    for (int i = 0; i < 3; ++i) out += ", " + format_number(v[i]);
+    for (int i = 0; i < 3; ++i) out += ", " + format_number(w[i]);
+    out += "]";
+  }
+  return out + "\n]\n";
 }
 
 std::string toml_quaternion(const Quat& q) {
@@ -1590,6 +1717,7 @@ std::string scene_to_toml(const Scene& scene) {
       case ShapeKind::plane:
         out << "\n[[walls]]\ntype = \"plane\"\npoint = " << format_vec3(state.position[body])
             << "\nnormal = " << format_vec3(state.orientation[body] * model.planes[index].normal) << "\n";
+        out << motion_keys(model, state, body);
         break;
       case ShapeKind::box:
         out << "\n[[walls]]\ntype = \"box\"\ncenter = " << format_vec3(state.position[body])
@@ -1597,6 +1725,7 @@ std::string scene_to_toml(const Scene& scene) {
         if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
           out << "orientation = " << toml_quaternion(state.orientation[body]) << "\n";
         }
+        out << motion_keys(model, state, body);
         break;
       case ShapeKind::sphere:
         out << "\n[[bodies]]\nshape = \"sphere\"\nradius = " << format_number(model.spheres[index].radius)
@@ -1604,8 +1733,7 @@ std::string scene_to_toml(const Scene& scene) {
         if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
           out << "\norientation = " << toml_quaternion(state.orientation[body]);
         }
-        out << "\nvelocity = " << format_vec3(state.velocity[body])
-            << "\nangular_velocity = " << format_vec3(state.angular_velocity[body]) << "\n";
+        out << "\n" << motion_keys(model, state, body);
         break;
       case ShapeKind::polyhedron: {
         // Body-frame vertices and faces (the shape's principal frame, centroid at the origin), so
@@ -1613,9 +1741,8 @@ std::string scene_to_toml(const Scene& scene) {
         // generator's merge angle, hence the convexity tolerance.
         const ConvexPolyhedron& shape = model.polyhedra[index];
         out << "\n[[bodies]]\nshape = \"polyhedron\"\nposition = " << format_vec3(state.position[body])
-            << "\norientation = " << toml_quaternion(state.orientation[body]) << "\nvelocity = "
-            << format_vec3(state.velocity[body]) << "\nangular_velocity = " << format_vec3(state.angular_velocity[body])
-            << "\nconvexity_tolerance = 0.05\nvertices = [";
+            << "\norientation = " << toml_quaternion(state.orientation[body]) << "\n"
+            << motion_keys(model, state, body) << "convexity_tolerance = 0.05\nvertices = [";
         for (std::size_t v = 0; v < shape.vertices.size(); ++v) out << (v ? ", " : "") << format_vec3(shape.vertices[v]);
         out << "]\nfaces = [";
         for (std::size_t f = 0; f < shape.faces.size(); ++f) {

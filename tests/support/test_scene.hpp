@@ -56,6 +56,15 @@ struct TestScene {
     place(id, centre, orientation, Vec3::Zero());
     return id;
   }
+  /// Makes body `id` a driven body with a constant velocity and angular velocity (infinite mass).
+  void drive(int id, const Vec3& velocity, const Vec3& angular_velocity = Vec3::Zero()) {
+    drive(id, PrescribedMotion{{state.time}, {velocity}, {angular_velocity}});
+  }
+  /// Makes body `id` a driven body moving with `motion`.
+  void drive(int id, PrescribedMotion motion) {
+    drive_body(model, id, std::move(motion));
+    set_prescribed_velocities(model, state);
+  }
   /// Sets the pose and velocity of a body already in the model.
   void place(int id, const Vec3& position, const Quat& orientation, const Vec3& velocity,
              const Vec3& angular_velocity = Vec3::Zero()) {
