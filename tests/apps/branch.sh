@@ -91,6 +91,28 @@ with h5py.File(sys.argv[1], "r") as a, h5py.File(sys.argv[2], "r") as b:
     assert b["run"].attrs["status"] == "end_time"
     assert abs(b["series/time"][-1] - 1.5) < 1e-9
 PY
+# S: the same branch with [[initial_conditions]]: the saved state, plus a rigid spin about the
+# grains' centre of mass added to every grain's velocity (walls untouched).
+{ cat "$work/b.toml"; printf '\n[[initial_conditions]]\nangular_velocity = [0.0, 0.0, 0.5]\n'; } > "$work/s.toml"
+"$rubble" run "$work/s.toml" --from "$work/a" --out "$work/s" -q > "$work/s.log" 2>&1 || fail "branch S with a spin"
+$py - "$work/a/run.h5" "$work/s/run.h5" << 'PY' || fail "S's first state is not A's last plus the spin"
+import sys, h5py, numpy as np
+with h5py.File(sys.argv[1], "r") as a, h5py.File(sys.argv[2], "r") as s:
+    last = a["snapshots"][sorted(a["snapshots"])[-1]]
+    first = s["snapshots"][sorted(s["snapshots"])[0]]
+    mass = a["model/mass"][:]
+    grain = mass > 0
+    x = last["position"][:][grain]
+    centre = (mass[grain, None] * x).sum(axis=0) / mass[grain].sum()
+    omega = np.array([0.0, 0.0, 0.5])
+    expected = last["velocity"][:].copy()
+    expected[grain] += np.cross(omega, x - centre)
+    assert np.abs(first["velocity"][:] - expected).max() < 1e-12, np.abs(first["velocity"][:] - expected).max()
+    w = last["angular_velocity"][:].copy()
+    w[grain] += omega
+    assert np.abs(first["angular_velocity"][:] - w).max() < 1e-15
+    assert first["position"][:].tobytes() == last["position"][:].tobytes()
+PY
 # From a snapshot and from a time: the state of that snapshot.
 "$rubble" run "$work/b.toml" --from "$work/a:snapshot=3" --out "$work/b3" -q > "$work/b3.log" 2>&1 || fail "--from :snapshot=3"
 "$rubble" run "$work/b.toml" --from "$work/a/run.h5:time=0.13" --out "$work/bt" -q > "$work/bt.log" 2>&1 ||
@@ -137,4 +159,4 @@ PY
 # The exported scene runs on to rest (its grains move: the rest watcher starts armed).
 "$rubble" run "$work/exported.toml" --out "$work/e" > "$work/e.log" 2>&1 || fail "run the exported scene"
 grep -q "rubble run: at rest at t = " "$work/e.log" || fail "the exported scene did not come to rest"
-echo "branch: A at rest after $a_end steps; resume, branch, selectors, mismatch and export checked"
+echo "branch: A at rest after $a_end steps; resume, branch, spin, selectors, mismatch and export checked"
