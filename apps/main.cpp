@@ -13,21 +13,13 @@ int main(int argc, char** argv) {
   rubble::hdf5::skip_library_cleanup_at_exit();
   CLI::App app{"rubble: Contact Dynamics (Moreau-Jean + NLGS) for rubble-pile asteroids"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "rubble 0.1.0");
+  app.set_version_flag("--version", "rubble " RUBBLE_VERSION);
   rubble::apps::register_run_command(app);
   rubble::apps::register_export_command(app);
-#ifdef RUBBLE_HAS_PACK_COMMAND
   rubble::apps::register_pack_command(app);
-#endif
-#ifdef RUBBLE_HAS_GRAVITY_COMMAND
   rubble::apps::register_gravity_command(app);
-#endif
-#ifdef RUBBLE_HAS_POST_COMMAND
   rubble::apps::register_post_command(app);
-#endif
-#ifdef RUBBLE_HAS_FCLIB_COMMAND
   rubble::apps::register_fclib_command(app);
-#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::RuntimeError& e) {

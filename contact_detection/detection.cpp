@@ -8,9 +8,7 @@
 
 #include "contact_detection/narrow_phase_spheres.hpp"
 #include "core/parallel.hpp"
-#if RUBBLE_HAS_POLYHEDRA
 #include "contact_detection/narrow_phase_polyhedra.hpp"
-#endif
 
 namespace rubble {
 namespace {
@@ -188,7 +186,7 @@ void collide_pair(const Model& model, const State& state, const BodyPair& pair, 
   const ShapeKind kind_b = model.shape_kind[b];
   // Two bodies of infinite mass (walls, driven bodies) never interact: nothing could move either.
   if (model.is_fixed(a) && model.is_fixed(b)) return;
-  [[maybe_unused]] const Vec3* previous = memory.find(pair);
+  const Vec3* previous = memory.find(pair);
   if (kind_a == ShapeKind::sphere && kind_b == ShapeKind::sphere) {
     collide_sphere_sphere(model, state, a, b, alert_distance, contacts);
   } else if (kind_a == ShapeKind::plane && kind_b == ShapeKind::sphere) {
@@ -197,7 +195,6 @@ void collide_pair(const Model& model, const State& state, const BodyPair& pair, 
     collide_box_sphere(model, state, a, b, alert_distance, contacts);
   } else if (!model.is_grain(a) && !model.is_grain(b)) {
     return;  // two walls never interact
-#if RUBBLE_HAS_POLYHEDRA
   } else if (kind_a == ShapeKind::polyhedron && kind_b == ShapeKind::polyhedron) {
     collide_polyhedron_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
   } else if (kind_a == ShapeKind::sphere || kind_b == ShapeKind::sphere) {
@@ -206,9 +203,7 @@ void collide_pair(const Model& model, const State& state, const BodyPair& pair, 
     collide_plane_polyhedron(model, state, a, b, alert_distance, contacts);
   } else if (kind_a == ShapeKind::box) {
     collide_box_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
-#endif
   } else {
-    (void)common_normal;
     throw std::runtime_error("narrow phase: no contact routine for this pair of shapes");
   }
 }
