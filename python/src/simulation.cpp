@@ -185,9 +185,14 @@ void Simulation::close_record() {
   if (!record_) return;
   write_snapshot();
   // As run_scene says why it ended; a script may also stop before either end ("closed").
-  record_->set_status(at_rest_                                ? RunStatus::at_rest
-                      : state_.step >= progress_.end_step ? RunStatus::end_time
-                                                              : RunStatus::closed);
+  const RunStatus status = at_rest_                            ? RunStatus::at_rest
+                           : state_.step >= progress_.end_step ? RunStatus::end_time
+                                                               : RunStatus::closed;
+  const std::string reason =
+      status == RunStatus::at_rest    ? fmt::format("at rest at t = {:.6g} s (step {})", state_.time, state_.step)
+      : status == RunStatus::end_time ? fmt::format("end time reached at t = {:.6g} s (step {})", state_.time, state_.step)
+                                      : fmt::format("closed by the script at t = {:.6g} s (step {})", state_.time, state_.step);
+  record_->set_status(status, reason);
   record_->flush();
   record_.reset();
   record_vtk_.reset();

@@ -63,6 +63,8 @@ def test_recorded_run_file_matches_the_cli_run_file(rubble_exe, tiny_deposit, tm
         assert cli["scene"][()] == py["scene"][()]
         # Both say why they ended and store the settings as used, with units.
         assert cli["run"].attrs["status"] == py["run"].attrs["status"] == "end_time"
+        assert cli["run"].attrs["stop_reason"].startswith("end time reached at t = ")
+        assert py["run"].attrs["stop_reason"].startswith("end time reached at t = ")
         for name in ("time_step", "alert_distance", "pair_list_margin", "snapshot_every_steps"):
             assert cli["run"][name][()] == py["run"][name][()], name
             assert cli["run"][name].attrs["units"] == py["run"][name].attrs["units"], name

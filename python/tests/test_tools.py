@@ -169,6 +169,7 @@ def test_vtk_series_and_post_process(tmp_path, tiny_deposit):
     assert any(f.endswith(".csv") for f in files)
     with h5py.File(tmp_path / "run" / "run.h5") as f:
         assert f["run"].attrs["status"] == "closed"  # closed at t = 5 ms, before its end time (10 ms)
+        assert f["run"].attrs["stop_reason"] == "closed by the script at t = 0.005 s (step 50)"
 
 
 def test_recording_with_vtk_true_writes_the_paraview_series(tmp_path, tiny_deposit):
