@@ -65,7 +65,7 @@ struct DetectionMemory {
 double resolve_alert_distance(const Model& model, const DetectionOptions& options);
 
 /// Broad phase: every pair of bodies whose bounding volumes, inflated by the alert distance,
-/// overlap. Grains are binned in a uniform grid (cell size from the median grain size, large
+/// overlap. Grains are binned in a uniform grid (cell size from the 90th-percentile grain size, large
 /// grains span several cells, each pair reported once by the cell owning the lower corner of the
 /// overlap of the two boxes), so the cost is O(N) for bounded size ratios; walls are tested
 /// against every grain. Sorted, so the result does not depend on the thread count.

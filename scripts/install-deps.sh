@@ -17,7 +17,7 @@ packages=(
   libtomlplusplus-dev # scene files (TOML, with line numbers in errors)
   libcli11-dev       # command-line parsing
   nlohmann-json3-dev # one-line JSON reports
-  libspdlog-dev      # logging
+  libfmt-dev         # formatting (g++ 12 has no std::format)
   # tests and benchmarks
   libgtest-dev libgmock-dev googletest libbenchmark-dev
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes
