@@ -15,6 +15,7 @@
 #include <optional>
 #include <ostream>
 #include <stdexcept>
+#include <tuple>
 
 #include "core/hdf5_io.hpp"
 #include "postprocessing/run_reader.hpp"
@@ -558,6 +559,10 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
     study.push_back(std::move(r));
   }
 
+  // Rows by shape, mu, n_s (then path: seeds side by side), the order a reader compares them in.
+  std::stable_sort(study.begin(), study.end(), [](const StudyRun& a, const StudyRun& b) {
+    return std::tie(a.shape, a.friction, a.grains, a.path) < std::tie(b.shape, b.friction, b.grains, b.path);
+  });
   std::vector<fs::path> written;
   {
     const fs::path path = out / "study.csv";
