@@ -35,6 +35,7 @@ except ImportError:  # plots are a convenience: say so and leave every table as 
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
 MINUTE = 60.0
 
@@ -244,7 +245,7 @@ def draw_series(ax, study, groups, group_keys, y_key, style="-", filled=True, su
                 a, b = fit
                 grid = [xs[0] * (xs[-1] / xs[0]) ** (k / 50) for k in range(51)]
                 ax.plot(grid, [a * x ** b for x in grid], ":", color=colour, lw=1,
-                        label=f"fit {series_name(label, group_keys)}: ∝ $n_s^{{{b:.3f}}}$")
+                        label=f"fit {series_name(label, group_keys)}{suffix} ∝ $n_s^{{{b:.3f}}}$")
 
 
 def read_fits(directory):
@@ -264,21 +265,46 @@ def split_series(study, rows):
     sweeps (shape, n_s groups with two or more mu) of the rows."""
     by_ns = sweep_groups(study, rows, "grains", ["shape", "friction"])
     by_mu = sweep_groups(study, rows, "friction", ["shape", "grains"])
-    ns_series = {k: v for k, v in by_ns.items() if len(v) >= 2} or by_ns
+    # A (shape, mu) group is an n_s series when it has two n_s or more, or when mu is the shape's
+    # smallest (a single polyhedron n_s at mu = 0 belongs beside the spheres' series); the other
+    # single points are the mu sweep, drawn in the inset.
+    lowest = {}
+    for shape, friction in by_ns:
+        lowest[shape] = min(friction, lowest.get(shape, friction))
+    ns_series = {k: v for k, v in by_ns.items() if len(v) >= 2 or k[1] == lowest[k[0]]}
     mu_series = {k: v for k, v in by_mu.items() if len(v) >= 2}
     return ns_series, mu_series
 
 
-def with_inset(fig, ax, study, mu_series, y_key, ylabel):
-    """An inset of y against mu for the mu sweeps, as the paper's figures 3b and 4b."""
+def plain_numbers(ax, minor_y=False):
+    """Log axes labelled 100, 1000 and 6, 7, 8 rather than 10^2 and 7 x 10^0; with minor_y the
+    y axis's minor ticks are labelled too (a ratio spanning less than a decade)."""
+    plain = FuncFormatter(lambda value, _: f"{value:g}")
+    ax.xaxis.set_major_formatter(plain)
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(plain)
+    ax.yaxis.set_minor_formatter(plain if minor_y else NullFormatter())
+
+
+def panels(mu_series):
+    """The figure, its main axes (against n_s) and, when the study has a mu sweep, a side panel
+    against mu (the paper's inset, beside the curves rather than over them)."""
     if not mu_series:
+        fig, ax = plt.subplots(figsize=(7, 4.8))
+        return fig, ax, None
+    fig, (ax, side) = plt.subplots(1, 2, figsize=(10, 4.8), gridspec_kw={"width_ratios": [2.4, 1]})
+    return fig, ax, side
+
+
+def mu_panel(side, study, mu_series, y_key, ylabel):
+    """y against mu for the mu sweeps (several mu at one n_s): the paper's insets of figs 3b, 4b."""
+    if side is None:
         return
-    inset = ax.inset_axes([0.58, 0.1, 0.38, 0.33])
-    draw_series(inset, study, mu_series, ["shape", "grains"], y_key)
-    inset.set_xlabel(r"friction $\mu$", fontsize=7)
-    inset.set_ylabel(ylabel, fontsize=7)
-    inset.tick_params(labelsize=6)
-    inset.legend(fontsize=5)
+    draw_series(side, study, mu_series, ["shape", "grains"], y_key)
+    side.set_xlabel(r"friction coefficient $\mu$")
+    side.set_ylabel(ylabel)
+    side.set_title("against friction (the paper's inset)", fontsize=8)
+    side.legend(fontsize=6)
 
 
 def caption(study, rows, window):
@@ -343,43 +369,46 @@ def study_plots(directory):
 
     energy_plot(study, rows, directory, window)
 
-    fig, ax = plt.subplots(figsize=(7, 4.8))
+    fig, ax, side = panels(mu_series)
     draw_series(ax, study, ns_series, ["shape", "friction"], "Z_max")
     draw_series(ax, study, ns_series, ["shape", "friction"], "Z_without_rattlers", style="--", filled=False,
                 suffix=", without rattlers")
     ax.set_xscale("log")
+    plain_numbers(ax)
     ax.set_xlabel(ns)
     ax.set_ylabel(r"coordination number $Z_{max}$ (contacts per grain)")
     title(ax, "Coordination number against the number of grains (paper fig. 3b)", note + ringed)
     ax.legend(fontsize=6, loc="upper left")
-    with_inset(fig, ax, study, mu_series, "Z_max", r"$Z_{max}$")
+    mu_panel(side, study, mu_series, "Z_max", r"$Z_{max}$")
     save(fig, os.path.join(directory, "study_coordination.png"))
 
-    fig, ax = plt.subplots(figsize=(7, 4.8))
+    fig, ax, side = panels(mu_series)
     draw_series(ax, study, ns_series, ["shape", "friction"], "D_max_over_mean_d", fits=fits,
                 suffix=r": $D_{max}/\langle d\rangle$")
     draw_series(ax, study, ns_series, ["shape", "friction"], "D_max_over_d_star", style="--", filled=False,
                 fits=fits, suffix=r": $D_{max}/d^*$")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    plain_numbers(ax, minor_y=True)
     ax.set_xlabel(ns)
     ax.set_ylabel(r"aggregate diameter / grain diameter")
     title(ax, "Aggregate diameter against the number of grains, log-log (paper fig. 4a and inset)", note + ringed)
     ax.legend(fontsize=6, loc="upper left")
-    with_inset(fig, ax, study, mu_series, "D_max_over_mean_d", r"$D_{max}/\langle d\rangle$")
+    mu_panel(side, study, mu_series, "D_max_over_mean_d", r"$D_{max}/\langle d\rangle$")
     save(fig, os.path.join(directory, "study_diameter.png"))
 
-    fig, ax = plt.subplots(figsize=(7, 4.8))
+    fig, ax, side = panels(mu_series)
     draw_series(ax, study, ns_series, ["shape", "friction"], "packing_fraction",
                 suffix=r": $\nu$ (sphere of diameter $D_{max}$)")
     draw_series(ax, study, ns_series, ["shape", "friction"], "inertia_packing_fraction", style="--", filled=False,
                 suffix=r": $\nu_I$ (inertia ellipsoid)")
     ax.set_xscale("log")
+    plain_numbers(ax)
     ax.set_xlabel(ns)
     ax.set_ylabel(r"packing fraction (grain volume / aggregate volume)")
     title(ax, "Packing fraction against the number of grains (paper fig. 4b)", note + ringed)
     ax.legend(fontsize=6, loc="upper left")
-    with_inset(fig, ax, study, mu_series, "packing_fraction", r"$\nu$")
+    mu_panel(side, study, mu_series, "packing_fraction", r"$\nu$")
     save(fig, os.path.join(directory, "study_packing.png"))
 
     # The peak of <E_c>: power law and exponential fitted (the paper says "exponentially").
@@ -403,6 +432,7 @@ def study_plots(directory):
                         lw=1, label=f"exponential ∝ exp({exponential[1]:.3g} $n_s$)")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    plain_numbers(ax, minor_y=True)
     ax.set_xlabel(ns)
     ax.set_ylabel(r"peak of $\langle E_c \rangle$ (J per grain)")
     ax.set_title("Peak mean kinetic energy against the number of grains (paper fig. 3a inset)\n"

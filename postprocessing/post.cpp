@@ -349,6 +349,13 @@ std::string significant(double x) {
   return text.data();
 }
 
+/// A parameter of the run (mu, the window's start) as given: 0.4, not 0.4000.
+std::string parameter_text(double x) {
+  std::array<char, 32> text{};
+  std::snprintf(text.data(), text.size(), "%.6g", x);
+  return text.data();
+}
+
 /// A count (grains, snapshots) as an integer.
 std::string count_text(double x) { return std::to_string(std::llround(x)); }
 
@@ -539,7 +546,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       std::string why = !r.at_rest ? "did not end at rest (status " + r.status + ")" : "";
       if (!r.reached_window) {
         why += (why.empty() ? "" : " and ") + std::string("did not reach the window t >= ") +
-               significant(options.stable_after) + " s (ended at t = " + significant(r.end_time) +
+               parameter_text(options.stable_after) + " s (ended at t = " + significant(r.end_time) +
                " s; its final snapshot is reported instead, averaged_over = final_snapshot)";
       }
       left_out.push_back(r.path + " (" + why + ")");
@@ -553,7 +560,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
     }
     if (options.log != nullptr) {
       *options.log << "rubble post: study: " << r.path << " (" << r.shape << ", n_s = " << r.grains
-                   << ", mu = " << significant(r.friction) << ", " << r.snapshots_used << " snapshots in the "
+                   << ", mu = " << parameter_text(r.friction) << ", " << r.snapshots_used << " snapshots in the "
                    << (r.reached_window ? "window" : "final state") << ")\n";
     }
     study.push_back(std::move(r));
@@ -584,8 +591,8 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
                                    r.included ? "1" : "0",
                                    r.shape,
                                    count_text(r.grains),
-                                   significant(r.friction),
-                                   significant(options.stable_after),
+                                   parameter_text(r.friction),
+                                   parameter_text(options.stable_after),
                                    significant(r.end_time),
                                    r.averaged_over,
                                    std::to_string(r.snapshots_used),
@@ -607,7 +614,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   const auto used = std::count_if(study.begin(), study.end(), [](const StudyRun& r) { return r.included; });
   if (used == 0) {
     std::string message = "rubble post --study: no run file with snapshots that ended at rest in the window t >= " +
-                          significant(options.stable_after) + " s found in the given paths";
+                          parameter_text(options.stable_after) + " s found in the given paths";
     if (!left_out.empty()) {
       message += "; " + std::to_string(left_out.size()) + " left out:";
       for (const std::string& run : left_out) message += " " + run;
@@ -642,11 +649,11 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
         }
         if (std::set<double>(n.begin(), n.end()).size() < 2) continue;  // a fit needs two n_s
         const auto power = fit_line(log_n, log_y);
-        csv.text_row({shape, significant(friction), quantity, "power", significant(std::exp(power[0])),
+        csv.text_row({shape, parameter_text(friction), quantity, "power", significant(std::exp(power[0])),
                       significant(power[1]), std::to_string(n.size()), significant(power[2])});
         if (quantity == "peak_mean_kinetic_energy") {
           const auto exponential = fit_line(n, log_y);
-          csv.text_row({shape, significant(friction), quantity, "exponential", significant(std::exp(exponential[0])),
+          csv.text_row({shape, parameter_text(friction), quantity, "exponential", significant(std::exp(exponential[0])),
                         significant(exponential[1]), std::to_string(n.size()), significant(exponential[2])});
         }
       }
@@ -676,7 +683,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
                   "Window: t >= %s s (%s min). Values: mean over the window's snapshots; runs marked * did not "
                   "reach the window (final snapshot shown), ! did not end at rest; both are left out of the fits "
                   "and plots unless --include-unfinished.\n",
-                  significant(options.stable_after).c_str(), significant(options.stable_after / 60.0).c_str());
+                  parameter_text(options.stable_after).c_str(), parameter_text(options.stable_after / 60.0).c_str());
     text << line.data();
     std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
                   "shape", "n_s", "mu", "", "peak_min", "rest_min", "plateau_J", "Z", "Z_nr", "nu", "nu_I",
@@ -685,7 +692,7 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
     for (const StudyRun& r : study) {
       const std::string flag = std::string(r.reached_window ? "" : "*") + (r.at_rest ? "" : "!");
       std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
-                    r.shape.c_str(), count_text(r.grains).c_str(), significant(r.friction).c_str(), flag.c_str(),
+                    r.shape.c_str(), count_text(r.grains).c_str(), parameter_text(r.friction).c_str(), flag.c_str(),
                     significant(r.peak_time / 60.0).c_str(),
                     r.at_rest ? significant(r.rest_time / 60.0).c_str() : "-",
                     r.reached_window ? significant(r.plateau).c_str() : "-",
