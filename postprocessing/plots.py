@@ -344,13 +344,13 @@ def energy_plot(study, rows, directory, window):
     ax.axvline(20, color="grey", ls=":", lw=1)
     ax.axvline(window / MINUTE, color="black", ls="--", lw=1)
     ax.text(20, 0.98, " paper's peak ≈ 20 min", transform=ax.get_xaxis_transform(), fontsize=7, va="top")
-    ax.text(window / MINUTE, 0.9, f" window t ≥ {window / MINUTE:.4g} min", transform=ax.get_xaxis_transform(),
+    ax.text(window / MINUTE, 0.98, f" window t ≥ {window / MINUTE:.4g} min", transform=ax.get_xaxis_transform(),
             fontsize=7, va="top")
     ax.plot([], [], "o", color="grey", label="rest time of the run (dot)")
     ax.set_xlabel("simulated time t (min)")
     ax.set_ylabel(r"mean kinetic energy per grain $\langle E_c \rangle$ (J)")
     ax.set_title("Mean kinetic energy per grain during the accretion (paper fig. 3a)", fontsize=10)
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=6, loc="lower left")  # the curves start there but leave it at once
     save(fig, os.path.join(directory, "study_kinetic_energy.png"))
 
 
