@@ -35,7 +35,7 @@ except ImportError:  # plots are a convenience: say so and leave every table as 
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
-from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
+from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator  # noqa: E402
 
 MINUTE = 60.0
 
@@ -276,10 +276,14 @@ def split_series(study, rows):
     return ns_series, mu_series
 
 
-def plain_numbers(ax, minor_y=False):
+def plain_numbers(ax, minor_y=False, x_ticks=None):
     """Log axes labelled 100, 1000 and 6, 7, 8 rather than 10^2 and 7 x 10^0; with minor_y the
-    y axis's minor ticks are labelled too (a ratio spanning less than a decade)."""
+    y axis's minor ticks are labelled too (a ratio spanning less than a decade); x_ticks (the
+    study's n_s) replace the decades on x, which a study from 125 to 512 grains would not reach."""
     plain = FuncFormatter(lambda value, _: f"{value:g}")
+    if x_ticks:
+        ax.set_xticks(sorted(set(x_ticks)))
+        ax.xaxis.set_minor_locator(NullLocator())
     ax.xaxis.set_major_formatter(plain)
     ax.xaxis.set_minor_formatter(NullFormatter())
     ax.yaxis.set_major_formatter(plain)
@@ -374,11 +378,11 @@ def study_plots(directory):
     draw_series(ax, study, ns_series, ["shape", "friction"], "Z_without_rattlers", style="--", filled=False,
                 suffix=", without rattlers")
     ax.set_xscale("log")
-    plain_numbers(ax)
+    plain_numbers(ax, x_ticks=[study["grains"][i] for i in rows])
     ax.set_xlabel(ns)
     ax.set_ylabel(r"coordination number $Z_{max}$ (contacts per grain)")
     title(ax, "Coordination number against the number of grains (paper fig. 3b)", note + ringed)
-    ax.legend(fontsize=6, loc="upper left")
+    ax.legend(fontsize=6, loc="best")
     mu_panel(side, study, mu_series, "Z_max", r"$Z_{max}$")
     save(fig, os.path.join(directory, "study_coordination.png"))
 
@@ -389,11 +393,11 @@ def study_plots(directory):
                 fits=fits, suffix=r": $D_{max}/d^*$")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    plain_numbers(ax, minor_y=True)
+    plain_numbers(ax, minor_y=True, x_ticks=[study["grains"][i] for i in rows])
     ax.set_xlabel(ns)
     ax.set_ylabel(r"aggregate diameter / grain diameter")
     title(ax, "Aggregate diameter against the number of grains, log-log (paper fig. 4a and inset)", note + ringed)
-    ax.legend(fontsize=6, loc="upper left")
+    ax.legend(fontsize=6, loc="best")
     mu_panel(side, study, mu_series, "D_max_over_mean_d", r"$D_{max}/\langle d\rangle$")
     save(fig, os.path.join(directory, "study_diameter.png"))
 
@@ -403,11 +407,11 @@ def study_plots(directory):
     draw_series(ax, study, ns_series, ["shape", "friction"], "inertia_packing_fraction", style="--", filled=False,
                 suffix=r": $\nu_I$ (inertia ellipsoid)")
     ax.set_xscale("log")
-    plain_numbers(ax)
+    plain_numbers(ax, x_ticks=[study["grains"][i] for i in rows])
     ax.set_xlabel(ns)
     ax.set_ylabel(r"packing fraction (grain volume / aggregate volume)")
     title(ax, "Packing fraction against the number of grains (paper fig. 4b)", note + ringed)
-    ax.legend(fontsize=6, loc="upper left")
+    ax.legend(fontsize=6, loc="best")
     mu_panel(side, study, mu_series, "packing_fraction", r"$\nu$")
     save(fig, os.path.join(directory, "study_packing.png"))
 
@@ -432,7 +436,7 @@ def study_plots(directory):
                         lw=1, label=f"exponential ∝ exp({exponential[1]:.3g} $n_s$)")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    plain_numbers(ax, minor_y=True)
+    plain_numbers(ax, minor_y=True, x_ticks=[study["grains"][i] for i in rows])
     ax.set_xlabel(ns)
     ax.set_ylabel(r"peak of $\langle E_c \rangle$ (J per grain)")
     ax.set_title("Peak mean kinetic energy against the number of grains (paper fig. 3a inset)\n"
