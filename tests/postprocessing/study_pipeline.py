@@ -24,6 +24,7 @@ study.csv holds 4 significant digits, so values are compared to 1e-3 relative.
 Prints 'N passed, N failed' and exits non-zero on any failure.
 """
 import csv
+import importlib.util
 import math
 import os
 import random
@@ -171,11 +172,7 @@ def main(rubble, examples, doc_path, work):
     check(result.returncode == 0, f"rubble post --study: {result.returncode} {result.stderr}")
     with open(doc_path, encoding="utf-8") as f:
         doc = f.read()
-    try:
-        import matplotlib  # noqa: F401
-        plots = True
-    except ImportError:
-        plots = False
+    plots = importlib.util.find_spec("matplotlib") is not None
     for name in documented_files(doc, "## Files written by `rubble post --study`"):
         if name.endswith(".png") and not plots:
             continue
