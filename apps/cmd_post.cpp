@@ -79,6 +79,12 @@ int post_command(const PostArguments& args) {
       options.plots = !args.no_plots;
       options.plot = plot_options(args);
       options.include_unfinished = args.include_unfinished;
+      // Each run's own gravity (G, softening) for the escape test of its last snapshot.
+      options.potential_of = [](const RunReader& reader) {
+        PostOptions settings;
+        settings_from_scene(reader, settings, std::cerr);
+        return settings.potential;
+      };
       options.log = log;
       options.warnings = &std::cerr;
       std::vector<std::filesystem::path> inputs(args.study.begin(), args.study.end());
@@ -141,7 +147,8 @@ void register_post_command(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   post->add_option("--stable-after", args->stable_after,
-                   "With --study: average over snapshots at t >= this (s; the paper's 125 min)")
+                   "With --study: average over snapshots at t >= this (s; the paper's 125 min); never replaced: a run "
+                   "short of it is flagged and left out")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   post->add_flag("--no-plots", args->no_plots, "Do not draw the PNGs");
@@ -154,8 +161,9 @@ void register_post_command(CLI::App& app) {
                    "../share/rubble/)")
       ->type_name("FILE");
   post->add_flag("--include-unfinished", args->include_unfinished,
-                 "With --study: also average and plot runs that did not end at rest (interrupted, killed, cut by the "
-                 "end time); they are marked in study.csv and the plots");
+                 "With --study: also fit and plot runs that did not end at rest (interrupted, killed, cut by the "
+                 "end time) or did not reach the window (--stable-after); they are flagged in study.csv and drawn "
+                 "as open markers");
   post->add_flag("-q,--quiet", args->quiet, "Do not list progress and files");
   post->callback([args] {
     if (args->run_file.empty() && args->study.empty()) {

@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <utility>
 
 #include "gravity/gravity.hpp"
+#include "preprocessing/random_polyhedron.hpp"
 
 namespace rubble {
 namespace {
@@ -42,7 +44,70 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> force_bearing_pairs(const C
   return pairs;
 }
 
+/// phi_i, J/kg: the self-gravity potential of all other grains at each grain (0 for walls), summed
+/// exactly (gravity/ direct method: deterministic whatever the thread count).
+std::vector<double> self_gravity_potentials(const Model& model, const State& state, const PotentialSettings& settings) {
+  std::vector<double> phi(model.body_count(), 0.0);
+  std::vector<double> positions, masses;
+  std::vector<std::size_t> bodies;
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
+    if (!model.is_grain(i)) continue;
+    positions.insert(positions.end(), {state.position[i].x(), state.position[i].y(), state.position[i].z()});
+    masses.push_back(model.mass[i]);
+    bodies.push_back(i);
+  }
+  if (masses.size() < 2) return phi;
+  gravity::GravityOptions options;
+  options.method = gravity::Method::direct;
+  options.G = settings.gravitational_constant;
+  if (settings.softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, settings.softening};
+  std::vector<double> accelerations(positions.size()), potential(masses.size());
+  gravity::compute_field(options, positions, masses, accelerations, potential);
+  for (std::size_t k = 0; k < bodies.size(); ++k) phi[bodies[k]] = potential[k];
+  return phi;
+}
+
+/// Farthest point of grain i's surface from `centre`: |x_i - c| + r for a sphere, the farthest
+/// vertex for a polyhedron (its convex hull, so a vertex is the farthest point).
+double farthest_reach(const Model& model, const State& state, std::size_t i, const Vec3& centre) {
+  const Vec3 arm = state.position[i] - centre;
+  if (model.shape_kind[i] == ShapeKind::sphere) return arm.norm() + model.sphere_radius(i);
+  const ConvexPolyhedron& shape = model.polyhedra[static_cast<std::size_t>(model.shape_index[i])];
+  const Mat3 rotation = state.orientation[i].toRotationMatrix();
+  double reach = 0.0;
+  for (const Vec3& v : shape.vertices) reach = std::max(reach, (arm + rotation * v).squaredNorm());
+  return std::sqrt(reach);
+}
+
+/// Union-find root with path halving.
+std::size_t find_root(std::vector<std::size_t>& parent, std::size_t i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
 }  // namespace
+
+GrainSizes grain_sizes(const Model& model) {
+  GrainSizes sizes;
+  sizes.circumscribed_diameter.assign(model.body_count(), 0.0);
+  sizes.equivalent_diameter.assign(model.body_count(), 0.0);
+  // One ball per polyhedron shape (bodies may share a shape).
+  std::vector<double> polyhedron_diameter(model.polyhedra.size(), 0.0);
+  for (std::size_t s = 0; s < model.polyhedra.size(); ++s) {
+    polyhedron_diameter[s] = 2.0 * smallest_enclosing_ball(model.polyhedra[s].vertices).radius;
+  }
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
+    if (!model.is_grain(i)) continue;
+    sizes.circumscribed_diameter[i] = model.shape_kind[i] == ShapeKind::sphere
+                                          ? 2.0 * model.sphere_radius(i)
+                                          : polyhedron_diameter[static_cast<std::size_t>(model.shape_index[i])];
+    sizes.equivalent_diameter[i] = std::cbrt(6.0 * model.volume[i] / std::numbers::pi);
+  }
+  return sizes;
+}
 
 double kinetic_energy(const Model& model, const State& state) {
   double energy = 0.0;
@@ -68,23 +133,10 @@ double potential_energy(const Model& model, const State& state, const PotentialS
       return energy;
     }
     case PotentialSettings::Kind::self: {
-      // U = 1/2 sum_i m_i phi_i with phi_i the exact direct-sum potential of the other grains
-      // (gravity/ direct method: deterministic whatever the thread count).
-      std::vector<double> positions, masses;
-      for (std::size_t i = 0; i < model.body_count(); ++i) {
-        if (!model.is_grain(i)) continue;
-        positions.insert(positions.end(), {state.position[i].x(), state.position[i].y(), state.position[i].z()});
-        masses.push_back(model.mass[i]);
-      }
-      if (masses.size() < 2) return 0.0;
-      gravity::GravityOptions options;
-      options.method = gravity::Method::direct;
-      options.G = settings.gravitational_constant;
-      if (settings.softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, settings.softening};
-      std::vector<double> accelerations(positions.size()), potential(masses.size());
-      gravity::compute_field(options, positions, masses, accelerations, potential);
+      // U = 1/2 sum_i m_i phi_i with phi_i the exact direct-sum potential of the other grains.
+      const std::vector<double> phi = self_gravity_potentials(model, state, settings);
       double energy = 0.0;
-      for (std::size_t k = 0; k < masses.size(); ++k) energy += 0.5 * masses[k] * potential[k];
+      for (std::size_t i = 0; i < model.body_count(); ++i) energy += 0.5 * model.mass[i] * phi[i];
       return energy;
     }
   }
@@ -125,6 +177,12 @@ GrainMomenta grain_momenta(const Model& model, const State& state) {
 
 AggregateMetrics compute_metrics(const Model& model, const State& state, const ContactList& contacts,
                                  const PotentialSettings& potential, const ContactMetricsOptions& options) {
+  return compute_metrics(model, grain_sizes(model), state, contacts, potential, options);
+}
+
+AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, const State& state,
+                                 const ContactList& contacts, const PotentialSettings& potential,
+                                 const ContactMetricsOptions& options) {
   AggregateMetrics m;
   m.time = state.time;
   m.step = state.step;
@@ -142,7 +200,15 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   if (m.grains == 0) return m;
   m.kinetic_energy = m.translational_energy + m.rotational_energy;
   m.mean_kinetic_energy = m.kinetic_energy / static_cast<double>(m.grains);
-  m.potential_energy = potential_energy(model, state, potential);
+  // Self-gravity: the per-grain potential serves the energy and the escape test below.
+  const std::vector<double> phi = potential.kind == PotentialSettings::Kind::self
+                                      ? self_gravity_potentials(model, state, potential)
+                                      : std::vector<double>();
+  if (potential.kind == PotentialSettings::Kind::self) {
+    for (std::size_t i = 0; i < n; ++i) m.potential_energy += 0.5 * model.mass[i] * phi[i];
+  } else {
+    m.potential_energy = potential_energy(model, state, potential);
+  }
   m.total_energy = m.kinetic_energy + m.potential_energy;
   const GrainMomenta momenta = grain_momenta(model, state);
   m.linear_momentum = momenta.linear;
@@ -150,14 +216,16 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   m.centre_of_mass = momenta.centre_of_mass;
   const double total_mass = momenta.mass;
 
-  // Sizes, D_max.
+  // Sizes, D_max. Grain diameters are those of the circumscribed spheres (the smallest enclosing
+  // balls), as the accretion study measures its grains; D_max reaches the farthest point of any
+  // grain from x_cm exactly (a polyhedron's farthest vertex), so it is the diameter of the smallest
+  // sphere about x_cm that holds every grain whole.
   double reach = 0.0, diameter_sum = 0.0, equivalent_sum = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!model.is_grain(i)) continue;
-    const Vec3 arm = state.position[i] - m.centre_of_mass;
-    reach = std::max(reach, arm.norm() + model.bounding_radius[i]);
-    diameter_sum += 2.0 * model.bounding_radius[i];
-    equivalent_sum += std::cbrt(6.0 * model.volume[i] / std::numbers::pi);
+    reach = std::max(reach, farthest_reach(model, state, i, m.centre_of_mass));
+    diameter_sum += sizes.circumscribed_diameter[i];
+    equivalent_sum += sizes.equivalent_diameter[i];
   }
   const auto grains = static_cast<double>(m.grains);
   m.aggregate_diameter = 2.0 * reach;
@@ -217,6 +285,7 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   double impulse_sum = 0.0;
   for (const Contact& contact : contacts) {
     ++m.contact_points;
+    m.max_overlap = std::max(m.max_overlap, -contact.gap);
     if (!carries_force(contact, options)) continue;
     ++m.force_bearing_points;
     impulse_sum += contact.impulse.x();
@@ -260,6 +329,32 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
       backbone_grains > 0 ? 2.0 * static_cast<double>(backbone_contacts) / static_cast<double>(backbone_grains) : 0.0;
   m.inner_coordination =
       m.inner_grains > 0 ? static_cast<double>(inner_contact_sum) / static_cast<double>(m.inner_grains) : 0.0;
+
+  // Detached grains: outside the largest cluster of the contact network. Every listed point joins
+  // its pair, force-bearing or not: in a frictionless pile at rest the forces are not unique
+  // (Radjai & Dubois 2011), so a touching grain may carry none at one instant yet is no less part
+  // of the aggregate.
+  std::vector<std::size_t> parent(n);
+  std::iota(parent.begin(), parent.end(), std::size_t{0});
+  for (const Contact& contact : contacts) {
+    if (!model.is_grain(contact.id.body_a) || !model.is_grain(contact.id.body_b)) continue;
+    const std::size_t a = find_root(parent, contact.id.body_a), b = find_root(parent, contact.id.body_b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+  std::vector<std::int64_t> cluster_size(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (model.is_grain(i)) ++cluster_size[find_root(parent, i)];
+  }
+  const std::size_t largest =
+      static_cast<std::size_t>(std::max_element(cluster_size.begin(), cluster_size.end()) - cluster_size.begin());
+  const Vec3 v_cm = total_mass > 0.0 ? Vec3(m.linear_momentum / total_mass) : Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!model.is_grain(i) || find_root(parent, i) == largest) continue;
+    ++m.detached_grains;
+    // Escape: positive specific energy in the field of all the other grains, the velocity taken
+    // relative to the grains' centre of mass (the aggregate's frame).
+    if (!phi.empty() && 0.5 * (state.velocity[i] - v_cm).squaredNorm() + phi[i] > 0.0) ++m.escaping_grains;
+  }
   return m;
 }
 
@@ -299,7 +394,8 @@ std::vector<std::string> metrics_column_names() {
           "force_bearing_points", "sliding_points", "sliding_fraction", "grain_contacts", "wall_contacts",
           "coordination", "rattlers", "coordination_without_rattlers", "inner_coordination", "mean_normal_impulse",
           "max_normal_impulse", "inertia_semi_axis_1", "inertia_semi_axis_2", "inertia_semi_axis_3",
-          "inertia_aspect_ratio", "inertia_diameter", "inertia_packing_fraction"};
+          "inertia_aspect_ratio", "inertia_diameter", "inertia_packing_fraction", "max_overlap",
+          "detached_grains", "escaping_grains"};
 }
 
 std::vector<double> metrics_row(const AggregateMetrics& m) {
@@ -346,7 +442,10 @@ std::vector<double> metrics_row(const AggregateMetrics& m) {
           m.inertia_semi_axes.z(),
           m.inertia_aspect_ratio,
           m.inertia_diameter,
-          m.inertia_packing_fraction};
+          m.inertia_packing_fraction,
+          m.max_overlap,
+          d(m.detached_grains),
+          d(m.escaping_grains)};
 }
 
 }  // namespace rubble

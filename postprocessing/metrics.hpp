@@ -55,6 +55,20 @@ struct ContactMetricsOptions {
   double impulse_threshold = 0.0;
 };
 
+/// Sizes of each grain that depend on its shape only, so they are computed once per model, not
+/// per snapshot (grain_sizes()). Indexed by body; walls get 0.
+struct GrainSizes {
+  /// m, diameter of the grain's circumscribed sphere, the smallest ball enclosing it: 2 r for a
+  /// sphere; for a polyhedron the smallest ball enclosing its vertices (CGAL), as the accretion
+  /// study measures its grains. Not twice the bounding radius about the centroid
+  /// (Model::bounding_radius), which is larger for a grain whose centroid is not the ball's centre.
+  std::vector<double> circumscribed_diameter;
+  std::vector<double> equivalent_diameter;  ///< m, (6 V / pi)^(1/3): the sphere of the grain's volume
+};
+
+/// The grain sizes of a model: one smallest-enclosing-ball computation per polyhedron shape.
+GrainSizes grain_sizes(const Model& model);
+
 /// The metrics of one snapshot (docs/postprocessing.md gives each formula).
 struct AggregateMetrics {
   double time = 0.0;       ///< s
@@ -73,8 +87,11 @@ struct AggregateMetrics {
 
   // --- geometry ---
   Vec3 centre_of_mass = Vec3::Zero();   ///< m, of the grains
-  double aggregate_diameter = 0.0;      ///< D_max = 2 max_i (|x_i - x_cm| + r_i), r_i bounding radius, m
-  double mean_diameter = 0.0;           ///< <d> = mean of 2 r_i, m
+  /// D_max, m: diameter of the smallest sphere centred on x_cm that holds every grain whole,
+  /// 2 max over grains of the farthest surface point from x_cm (|x_i - x_cm| + r_i for a sphere,
+  /// the farthest vertex for a polyhedron).
+  double aggregate_diameter = 0.0;
+  double mean_diameter = 0.0;           ///< <d> = mean circumscribed-sphere diameter (GrainSizes), m
   double equivalent_diameter = 0.0;     ///< d* = mean of (6 V_i / pi)^(1/3), m
   double grain_volume = 0.0;            ///< sum V_i, m^3
   double packing_fraction = 0.0;        ///< nu = sum V_i / (pi D_max^3 / 6)
@@ -101,9 +118,23 @@ struct AggregateMetrics {
   double inner_coordination = 0.0;          ///< mean grain-grain contacts of the inner grains (bulk Z)
   double mean_normal_impulse = 0.0;         ///< N s, mean r_n over force-bearing points
   double max_normal_impulse = 0.0;          ///< N s, largest r_n
+  double max_overlap = 0.0;                 ///< m, deepest interpenetration, max(0, -gap) over the contact points
+  /// Grains outside the largest cluster of the contact network (edges: the grain-grain contact
+  /// points of the list, i.e. pairs within the detection's alert distance, any impulse).
+  std::int64_t detached_grains = 0;
+  /// Detached grains on an escape orbit: 1/2 |v_i - v_cm|^2 + phi_i > 0, phi_i the exact
+  /// self-gravity potential of all other grains at grain i. Counted only with
+  /// PotentialSettings::Kind::self (0 otherwise).
+  std::int64_t escaping_grains = 0;
 };
 
-/// Every metric of one snapshot. `contacts` are the snapshot's contact points.
+/// Every metric of one snapshot. `contacts` are the snapshot's contact points; `sizes` are
+/// grain_sizes(model), computed once for a series of snapshots of one model.
+AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, const State& state,
+                                 const ContactList& contacts, const PotentialSettings& potential = {},
+                                 const ContactMetricsOptions& options = {});
+
+/// The same, computing grain_sizes(model) first (one snapshot on its own).
 AggregateMetrics compute_metrics(const Model& model, const State& state, const ContactList& contacts,
                                  const PotentialSettings& potential = {}, const ContactMetricsOptions& options = {});
 

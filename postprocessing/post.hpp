@@ -3,6 +3,7 @@
 // several runs to the study's comparison plots (the LMGC90 accretion paper figures 3-4). Every file written is listed
 // in docs/postprocessing.md.
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
 #include <optional>
 #include <stdexcept>
@@ -12,6 +13,8 @@
 #include "postprocessing/metrics.hpp"
 
 namespace rubble {
+
+class RunReader;
 
 /// A run file whose content, or a metric computed from it, is not finite (NaN or infinite
 /// positions, energies, metrics): a numerical failure, which `rubble post` reports with exit code 3
@@ -70,22 +73,29 @@ std::vector<std::filesystem::path> post_process_run(const std::filesystem::path&
 struct StudyOptions {
   std::filesystem::path output_directory;  ///< where study.csv and the PNGs go
   /// s: snapshots at or after this time form the stabilised regime averaged over (the paper's
-  /// t > 125 min). A run with no snapshot that late uses its last quarter of snapshots instead.
+  /// t > 125 min). Never replaced: a run with no snapshot that late is reported at its final
+  /// snapshot, flagged (study.csv reached_window = 0, averaged_over = final_snapshot) and left out
+  /// of the fits and plots unless include_unfinished.
   double stable_after = 7500.0;
   bool plots = true;             ///< draw the PNGs with plots.py
   PlotOptions plot{};            ///< interpreter, script and warnings of the plots
-  /// Also average and plot runs that did not end at rest (/run@status other than at_rest: stopped
+  /// Also fit and plot runs that did not end at rest (/run@status other than at_rest: stopped
   /// by a signal or a failure, killed, still running, ended at end_time before rest, or "unknown"
-  /// in a format 1 file). They are always listed in study.csv, with their status.
+  /// in a format 1 file) or did not reach the window. They are always listed in study.csv, with
+  /// their status and reached_window, and drawn as open markers.
   bool include_unfinished = false;
+  /// The run's gravity, for the escape test of the last snapshot (AggregateMetrics::escaping_grains);
+  /// unset: no gravity, no grain counted as escaping. `rubble post` reads it from the run's scene.
+  std::function<PotentialSettings(const RunReader&)> potential_of;
   std::ostream* log = nullptr;   ///< progress (nullptr: silent)
   std::ostream* warnings = nullptr;  ///< as PostOptions::warnings
 };
 
 /// Gathers run files (each argument a run file, or a folder searched recursively for *.h5 run
-/// files) into study.csv and the comparison plots; returns the files written. Throws
-/// std::runtime_error when no run file is found, or none that ended at rest (unless
-/// include_unfinished).
+/// files) into the study table (study.csv, study.txt), the fits (study_fits.csv), the <E_c>(t)
+/// curves (study_kinetic_energy.csv) and the paper's panels; returns the files written. Throws
+/// std::runtime_error when no run file is found, or none that ended at rest in the window (unless
+/// include_unfinished); study.csv is written first all the same.
 std::vector<std::filesystem::path> post_process_study(const std::vector<std::filesystem::path>& inputs,
                                                       const StudyOptions& options);
 

@@ -100,6 +100,22 @@ std::vector<std::array<int, 3>> convex_hull_triangles(const std::vector<Vec3>& p
   return triangles;
 }
 
+Ball smallest_enclosing_ball(const std::vector<Vec3>& points) {
+  if (points.empty()) throw std::invalid_argument("smallest_enclosing_ball: no point");
+  // With double as the number type CGAL runs its floating-point algorithm (Selector<double>:
+  // Result = double), so the centre and radius are plain doubles.
+  using Traits = CGAL::Min_sphere_of_points_d_traits_3<Kernel, double>;
+  std::vector<Point> cgal_points;
+  cgal_points.reserve(points.size());
+  for (const Vec3& p : points) cgal_points.emplace_back(p.x(), p.y(), p.z());
+  CGAL::Min_sphere_of_spheres_d<Traits> min_sphere(cgal_points.begin(), cgal_points.end());  // radius() updates lazily: not const
+  Ball ball;
+  ball.radius = CGAL::to_double(min_sphere.radius());
+  auto coordinate = min_sphere.center_cartesian_begin();
+  for (int k = 0; k < 3; ++k, ++coordinate) ball.centre[k] = CGAL::to_double(*coordinate);
+  return ball;
+}
+
 double convex_hull_volume(const std::vector<Vec3>& points) {
   return CGAL::to_double(CGAL::Polygon_mesh_processing::volume(hull_mesh(points)));
 }
@@ -281,12 +297,8 @@ ConvexPolyhedron generate_random_polyhedron(const RandomPolyhedronOptions& optio
     throw std::runtime_error(std::string("random polyhedron (seed ") + std::to_string(seed) + "): " + e.what());
   }
 
-  // Circumscribed sphere: the smallest sphere enclosing the vertices (CGAL, exact for points).
-  using Traits = CGAL::Min_sphere_of_points_d_traits_3<Kernel, double>;
-  std::vector<Point> cgal_points;
-  for (const Vec3& v : shape.vertices) cgal_points.emplace_back(v.x(), v.y(), v.z());
-  CGAL::Min_sphere_of_spheres_d<Traits> min_sphere(cgal_points.begin(), cgal_points.end());
-  const double radius = CGAL::to_double(min_sphere.radius());
+  // Circumscribed sphere: the smallest sphere enclosing the vertices.
+  const double radius = smallest_enclosing_ball(shape.vertices).radius;
   return scaled_polyhedron(shape, options.diameter / (2.0 * radius));
 }
 

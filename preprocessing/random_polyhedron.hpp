@@ -44,6 +44,19 @@ std::vector<std::array<int, 3>> convex_hull_triangles(const std::vector<Vec3>& p
 /// independent reference for the mass properties.
 double convex_hull_volume(const std::vector<Vec3>& points);
 
+/// A ball: centre and radius.
+struct Ball {
+  Vec3 centre = Vec3::Zero();  ///< m
+  double radius = 0.0;         ///< m
+};
+
+/// The smallest ball enclosing `points` (at least one): the circumscribed sphere of a convex
+/// polyhedron given its vertices, the grain "diameter" of the accretion study. Computed by CGAL's
+/// Min_sphere_of_spheres_d (Fischer & Gaertner 2003, "The smallest enclosing ball of balls"),
+/// in double precision: the radius is exact up to round-off.
+/// Its centre is in general not the centroid: a cone-like grain's ball is centred nearer its base.
+Ball smallest_enclosing_ball(const std::vector<Vec3>& points);
+
 /// Faces of a closed convex mesh after merging adjacent faces whose normals are within
 /// `angle_degrees` of the largest face of their group (region growing from the largest faces).
 /// A group is merged only when its boundary is a single loop that is convex seen along the

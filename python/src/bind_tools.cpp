@@ -223,11 +223,12 @@ void bind_tools(py::module_& m) {
             const std::vector<std::string> names = metrics_column_names();
             std::vector<std::vector<double>> columns(names.size());
             const std::size_t count = r.snapshot_count();
+            const GrainSizes sizes = grain_sizes(r.model());  // once: one enclosing ball per polyhedron
             for (std::size_t i = 0; i < count; ++i) {
               if (i % static_cast<std::size_t>(every) != 0 && i + 1 != count) continue;  // the last one always
               const RunSnapshot snapshot = r.read_snapshot(i);
-              const std::vector<double> row =
-                  metrics_row(compute_metrics(r.model(), snapshot.state, snapshot.contacts, settings.potential, options));
+              const std::vector<double> row = metrics_row(
+                  compute_metrics(r.model(), sizes, snapshot.state, snapshot.contacts, settings.potential, options));
               for (std::size_t c = 0; c < names.size(); ++c) columns[c].push_back(row[c]);
             }
             py::dict d;

@@ -315,7 +315,8 @@ PotentialSettings Simulation::potential_settings() const {
 }
 
 AggregateMetrics Simulation::metrics(const ContactMetricsOptions& options) const {
-  return compute_metrics(scene_.model, state_, workspace_.contacts, potential_settings(), options);
+  if (!grain_sizes_) grain_sizes_ = grain_sizes(scene_.model);
+  return compute_metrics(scene_.model, *grain_sizes_, state_, workspace_.contacts, potential_settings(), options);
 }
 
 }  // namespace rubble::python

@@ -121,6 +121,9 @@ class Simulation {
   StepReport last_report_{};
   std::array<double, stage_count> total_stage_seconds_{};
   std::size_t grain_count_ = 0;
+  /// The grains' circumscribed and equivalent diameters for metrics(): shapes never change, so
+  /// they are computed at the first call (one smallest enclosing ball per polyhedron), not each.
+  mutable std::optional<GrainSizes> grain_sizes_;
   std::vector<double> free_inverse_mass_;   ///< the model's inverse masses, restored when a body is freed
   std::vector<Vec3> free_inverse_inertia_;  ///< the same for the inverse inertia
 

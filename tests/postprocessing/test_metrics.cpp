@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "core/polyhedron.hpp"
 #include "tests/postprocessing/test_shapes.hpp"
 
 namespace rubble {
@@ -200,6 +201,92 @@ TEST(Metrics, LoneGrain) {
   EXPECT_NEAR(m.packing_fraction, 1.0, 1e-12);
   EXPECT_NEAR(m.inner_packing_fraction, 1.0, 1e-12);
   EXPECT_DOUBLE_EQ(m.sliding_fraction, 0.0);
+}
+
+/// A square pyramid: base corners (+-b, +-b, 0) with b = 1/sqrt(2) (1 from the axis), apex
+/// (0, 0, 3), built by make_convex_polyhedron (origin moved to the centroid, z = 3/4).
+ConvexPolyhedron square_pyramid() {
+  const double b = 1.0 / std::sqrt(2.0);
+  return make_convex_polyhedron({Vec3(b, b, 0), Vec3(-b, b, 0), Vec3(-b, -b, 0), Vec3(b, -b, 0), Vec3(0, 0, 3)},
+                                {{3, 2, 1, 0}, {0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}});
+}
+
+TEST(GrainSizes, CircumscribedSphereOfAPyramidIsNotTheBallAboutItsCentroid) {
+  // The smallest ball enclosing the pyramid passes through the apex and the 4 base corners; by
+  // symmetry its centre is on the axis at height c with c^2 + 1 = (3 - c)^2: c = 4/3, radius
+  // 5/3, diameter 10/3. The ball about the centroid (z = 3/4, the mean of a cone's height) must
+  // reach the apex: radius 9/4, diameter 4.5, 35% larger. <d> is the former (the accretion
+  // study's circumscribed sphere), as docs/postprocessing.md says.
+  Model model;
+  model.materials = {{"rock", 1000.0}};
+  model.contact_laws.reset(1, ContactLaw{});
+  add_polyhedron_grain(model, square_pyramid(), 0);
+  add_sphere(model, 0.75, 0);
+  ASSERT_NEAR(model.bounding_radius[0], 2.25, 1e-12);  // the old <d> was twice this
+  const GrainSizes sizes = grain_sizes(model);
+  EXPECT_NEAR(sizes.circumscribed_diameter[0], 10.0 / 3.0, 1e-12);
+  EXPECT_DOUBLE_EQ(sizes.circumscribed_diameter[1], 1.5);  // a sphere: its diameter
+  EXPECT_NEAR(sizes.equivalent_diameter[0], std::cbrt(6.0 * 2.0 / pi), 1e-12);  // V = (1/3) 2 * 3 = 2
+  State state;
+  state.resize(2);
+  state.position = {Vec3(0, 0, 0), Vec3(100, 0, 0)};
+  const AggregateMetrics m = compute_metrics(model, sizes, state, {});
+  EXPECT_NEAR(m.mean_diameter, (10.0 / 3.0 + 1.5) / 2.0, 1e-12);
+  EXPECT_NEAR(m.equivalent_diameter, (std::cbrt(12.0 / pi) + 1.5) / 2.0, 1e-12);
+  // The overload without sizes computes the same.
+  EXPECT_DOUBLE_EQ(compute_metrics(model, state, {}).mean_diameter, m.mean_diameter);
+}
+
+TEST(Metrics, AggregateDiameterReachesThePolyhedraFarthestVertices) {
+  // Two pyramids on the x axis at -+L, apexes pointing at each other (body z to world +x for the
+  // left one, -x for the right one), x_cm = 0. The farthest points from x_cm are the base
+  // corners, 3/4 behind each centroid and 1 off the axis: D_max = 2 sqrt((L + 3/4)^2 + 1). The
+  // bound |x_i - x_cm| + bounding radius would give 2 (L + 9/4), 24% more for L = 5.
+  Model model;
+  model.materials = {{"rock", 1000.0}};
+  model.contact_laws.reset(1, ContactLaw{});
+  for (int i = 0; i < 2; ++i) add_polyhedron_grain(model, square_pyramid(), 0);
+  const double L = 5.0;
+  State state;
+  state.resize(2);
+  state.position = {Vec3(-L, 0, 0), Vec3(L, 0, 0)};
+  state.orientation = {Quat(Eigen::AngleAxisd(pi / 2, Vec3::UnitY())), Quat(Eigen::AngleAxisd(-pi / 2, Vec3::UnitY()))};
+  const AggregateMetrics m = compute_metrics(model, state, {});
+  EXPECT_NEAR(m.aggregate_diameter, 2.0 * std::sqrt((L + 0.75) * (L + 0.75) + 1.0), 1e-12);
+  EXPECT_NEAR(m.packing_fraction, 4.0 / (pi * std::pow(m.aggregate_diameter, 3) / 6.0), 1e-12);
+}
+
+TEST(Metrics, DeepestOverlapDetachedAndEscapingGrains) {
+  // Grains 0 and 1 touch (one listed point, gap -0.01 m). Grain 2 is 1000 m away at rest: detached
+  // but bound. Grain 3 is 1000 m away the other side at 1 mm/s: detached, and its energy in the
+  // field of the others, 1/2 |v - v_cm|^2 - G sum_j m_j / r_j, is positive (escape speed
+  // sqrt(2 G 3 m / 1000 m) ~ 1e-5 m/s for these 4.2 t grains). A listed point joins its pair
+  // even without impulse (grain 1 - grain 4): grain 4 is in the aggregate.
+  const std::vector<Vec3> centres{Vec3(0, 0, 0), Vec3(1.99, 0, 0), Vec3(1000, 0, 0), Vec3(-1000, 0, 0), Vec3(3.98, 0, 0)};
+  Packing p = spheres_at(centres, 1.0);
+  p.state.velocity[3] = Vec3(-1e-3, 0, 0);
+  p.state.velocity[0] = Vec3(1e-3, 0, 0);  // v_cm = 0: grain 2 is at rest in the aggregate's frame
+  ContactList contacts(2);
+  contacts[0].id = {0, 1, 0, 0};
+  contacts[0].gap = -0.01;
+  contacts[0].impulse = Vec3(1.0, 0, 0);
+  contacts[1].id = {1, 4, 0, 0};
+  contacts[1].gap = -0.01 + 1e-9;
+  PotentialSettings gravity;
+  gravity.kind = PotentialSettings::Kind::self;
+  const AggregateMetrics m = compute_metrics(p.model, p.state, contacts, gravity);
+  EXPECT_NEAR(m.max_overlap, 0.01, 1e-15);
+  EXPECT_EQ(m.detached_grains, 2);
+  EXPECT_EQ(m.escaping_grains, 1);
+  // Grain 3's energy by hand, to show the margin is not round-off.
+  const double mass = p.model.mass[0], G = gravity.gravitational_constant;
+  double phi = 0.0;
+  for (int j : {0, 1, 2, 4}) phi -= G * mass / (centres[3] - centres[static_cast<std::size_t>(j)]).norm();
+  EXPECT_GT(0.5 * p.state.velocity[3].squaredNorm() + phi, 1e-7);
+  for (int j : {0, 1, 3, 4}) phi -= G * mass / (centres[2] - centres[static_cast<std::size_t>(j)]).norm();
+  EXPECT_LT(phi, 0.0);  // grain 2, at rest
+  // Without self-gravity no grain is counted as escaping.
+  EXPECT_EQ(compute_metrics(p.model, p.state, contacts).escaping_grains, 0);
 }
 
 TEST(Metrics, NoGrainAtAll) {

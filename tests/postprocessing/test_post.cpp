@@ -94,24 +94,39 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   post_process_study({dir}, study);  // finds both run.h5, skips post/metrics.h5
   auto study_rows = read_csv(dir / "study" / "study.csv");
   ASSERT_EQ(study_rows.size(), 3u);
-  EXPECT_EQ(study_rows[0][1], "status");
-  EXPECT_EQ(study_rows[0][2], "included");
-  EXPECT_EQ(study_rows[1][0], run.string());
-  EXPECT_EQ(study_rows[1][1], "at_rest");
-  EXPECT_EQ(study_rows[1][2], "1");
-  EXPECT_EQ(study_rows[1][3], "spheres");
-  EXPECT_EQ(std::stod(study_rows[1][4]), n);
-  EXPECT_EQ(std::stod(study_rows[1][5]), 0.4);
-  EXPECT_EQ(study_rows[1][6], "2");
-  EXPECT_DOUBLE_EQ(std::stod(study_rows[1][8]), 2.0 - 2.0 / n);
-  // The stopped run is listed with its status and left out of the plots.
-  EXPECT_EQ(study_rows[2][1], "interrupted");
-  EXPECT_EQ(study_rows[2][2], "0");
+  const auto cell = [&](std::size_t row, const std::string& name) {
+    const auto& header = study_rows[0];
+    const auto at = std::find(header.begin(), header.end(), name);
+    EXPECT_NE(at, header.end()) << name;
+    return at == header.end() ? std::string() : study_rows[row].at(static_cast<std::size_t>(at - header.begin()));
+  };
+  EXPECT_EQ(cell(1, "run"), run.string());
+  EXPECT_EQ(cell(1, "status"), "at_rest");
+  EXPECT_EQ(cell(1, "reached_window"), "1");
+  EXPECT_EQ(cell(1, "included"), "1");
+  EXPECT_EQ(cell(1, "shape"), "spheres");
+  EXPECT_EQ(std::stod(cell(1, "grains")), n);
+  EXPECT_EQ(std::stod(cell(1, "friction")), 0.4);
+  EXPECT_EQ(cell(1, "averaged_over"), "window");
+  EXPECT_EQ(cell(1, "snapshots_used"), "2");
+  // Printed at 4 significant digits (a window mean, not a 17-digit number).
+  EXPECT_EQ(cell(1, "Z_max"), "1.600");  // the chain: 2 - 2/N
+  EXPECT_EQ(cell(1, "Z_max_spread"), "0");
+  EXPECT_EQ(cell(1, "rest_time"), "0.6000");  // the run's end, at rest
+  EXPECT_EQ(cell(1, "D_max_over_mean_d"), "5.000");  // 5 unit spheres in a row
+  EXPECT_EQ(cell(1, "detached_grains"), "0");
+  // The stopped run is listed with its status and left out of the plots; no rest time.
+  EXPECT_EQ(cell(2, "status"), "interrupted");
+  EXPECT_EQ(cell(2, "included"), "0");
+  EXPECT_EQ(cell(2, "rest_time"), "");
+  EXPECT_TRUE(fs::exists(dir / "study" / "study.txt"));
+  EXPECT_TRUE(fs::exists(dir / "study" / "study_fits.csv"));
+  EXPECT_TRUE(fs::exists(dir / "study" / "study_kinetic_energy.csv"));
   study.include_unfinished = true;
   post_process_study({dir}, study);
   study_rows = read_csv(dir / "study" / "study.csv");
   ASSERT_EQ(study_rows.size(), 3u);
-  EXPECT_EQ(study_rows[2][2], "1");
+  EXPECT_EQ(cell(2, "included"), "1");
   // Only unfinished runs: nothing to plot, unless asked.
   study.include_unfinished = false;
   try {
@@ -120,6 +135,23 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   } catch (const std::runtime_error& error) {
     EXPECT_NE(std::string(error.what()).find("did not end at rest"), std::string::npos) << error.what();
   }
+  // A window no run reaches is never replaced by another: the run at rest is reported at its
+  // final snapshot, flagged, and left out (the paper's t > 125 min against a run stopped earlier).
+  study.stable_after = 1.0;
+  try {
+    post_process_study({run}, study);
+    ADD_FAILURE() << "expected an error: no run reached the window";
+  } catch (const std::runtime_error& error) {
+    EXPECT_NE(std::string(error.what()).find("did not reach the window"), std::string::npos) << error.what();
+  }
+  study_rows = read_csv(dir / "study" / "study.csv");
+  ASSERT_EQ(study_rows.size(), 2u);
+  EXPECT_EQ(cell(1, "reached_window"), "0");
+  EXPECT_EQ(cell(1, "included"), "0");
+  EXPECT_EQ(cell(1, "averaged_over"), "final_snapshot");
+  EXPECT_EQ(cell(1, "snapshots_used"), "1");
+  EXPECT_EQ(cell(1, "plateau_mean_kinetic_energy"), "");
+  study.stable_after = 0.45;
   EXPECT_THROW(post_process_study({dir / "post"}, study), std::runtime_error);  // no run file there
 }
 

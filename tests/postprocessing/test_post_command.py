@@ -10,9 +10,10 @@ Usage: test_post_command.py RUBBLE SCENE POSTPROCESSING.md OUTPUT-FORMAT.md CHEC
    exactly the documented columns and one row per snapshot, metrics.h5 holds the same numbers, the
    energy balance is sane (total energy never grows under uniform gravity with dissipative
    contacts, to 1e-6 relative).
-3. `rubble post --study` on two copies of the run (which ended at its end time, not at rest) refuses
-   them with exit code 2 and says so; with --include-unfinished it writes every study file the
-   document lists, with the runs' status in study.csv.
+3. `rubble post --study` on two copies of the run (which ended at its end time, not at rest, long
+   before the 7500 s window) refuses them with exit code 2 and says both; with
+   --include-unfinished it writes every study file the document lists, with the runs' status in
+   study.csv, the window not replaced (their final snapshot, flagged) and 4 significant digits.
 4. Plots without matplotlib (`--python` naming a program that has none) are a warning: exit 0,
    the CSV files written. A run file held open for writing (HDF5's file lock, as by a running
    `rubble run`) is read with a note instead of failing on the lock.
@@ -139,8 +140,9 @@ def main():
     shutil.copy(os.path.join(out, "metrics.h5"), os.path.join(study_runs, "run1"))  # not a run file: skipped
     study_out = os.path.join(work, "study")
     result = run([rubble, "post", "--study", study_runs, "-o", study_out, "-q"])
-    check(result.returncode == 2 and "did not end at rest" in result.stderr and "(end_time)" in result.stderr,
-          f"rubble post --study on runs not at rest: code {result.returncode}, {result.stderr}")
+    check(result.returncode == 2 and "did not end at rest" in result.stderr and "status end_time" in result.stderr
+          and "did not reach the window t >= 7500 s" in result.stderr,
+          f"rubble post --study on runs not at rest, short of the window: code {result.returncode}, {result.stderr}")
     result = run([rubble, "post", "--study", study_runs, "-o", study_out, "--include-unfinished", "-q"])
     check(result.returncode == 0, f"rubble post --study --include-unfinished failed: {result.stdout} {result.stderr}")
     for name in documented_files(post_doc, "## Files written by `rubble post --study`"):
@@ -150,6 +152,14 @@ def main():
         study = list(csv.DictReader(f))
     check(len(study) == 2 and all(int(float(r["grains"])) == grains for r in study), "study.csv rows")
     check(all(r["status"] == "end_time" and r["included"] == "1" for r in study), f"study.csv status: {study}")
+    # The window (7500 s) is not replaced by the run's last quarter: the final snapshot, flagged.
+    check(all(r["reached_window"] == "0" and r["averaged_over"] == "final_snapshot" and r["snapshots_used"] == "1"
+              for r in study), f"study.csv window: {study}")
+    # 4 significant digits at most (17 before), e.g. the peak energy and D_max.
+    for r in study:
+        for key in ("peak_mean_kinetic_energy", "D_max", "Z_max"):
+            digits = re.sub(r"e[-+]\d+$", "", r[key]).replace("-", "").replace(".", "").lstrip("0")
+            check(len(digits) <= 4, f"study.csv {key} = {r[key]}: more than 4 significant digits")
 
     no_plots_out = os.path.join(work, "post-no-matplotlib")
     result = run([rubble, "post", run_file, "-o", no_plots_out, "--python", os.path.join(work, "no-such-python")])
