@@ -8,7 +8,7 @@
 #include <numbers>
 
 #include "core/polyhedron.hpp"
-#include "tests/postprocessing/test_shapes.hpp"
+#include "test_shapes.hpp"
 
 namespace rubble {
 namespace {

@@ -19,7 +19,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "tests/postprocessing/test_shapes.hpp"
+#include "test_shapes.hpp"
 
 namespace rubble {
 namespace {

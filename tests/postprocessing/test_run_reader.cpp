@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "postprocessing/run_file.hpp"
-#include "tests/postprocessing/test_shapes.hpp"
+#include "test_shapes.hpp"
 
 namespace rubble {
 namespace {

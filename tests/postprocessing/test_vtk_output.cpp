@@ -20,7 +20,7 @@
 #include <regex>
 #include <sstream>
 
-#include "tests/postprocessing/test_shapes.hpp"
+#include "test_shapes.hpp"
 
 namespace rubble {
 namespace {
