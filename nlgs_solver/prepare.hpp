@@ -1,0 +1,25 @@
+#pragma once
+// The preparation of a step's contacts (prepare.cpp, LMGC90's "prep_nlgs"): arms, Delassus
+// blocks, laws, normal target velocities and cohesive impulses. `prepare_contacts` itself is
+// declared with the rest of the solver's interface in nlgs.hpp; this header holds what the
+// preparation shares with the other parts of the solver.
+#include <cstddef>
+
+#include <vector>
+
+#include "core/model.hpp"
+#include "core/state.hpp"
+
+namespace rubble {
+
+/// Reduced radius r_eff = r_a r_b / (r_a + r_b) of a contact's bodies from their volume-equivalent
+/// radii (a sphere's own radius), a grain's own radius against a wall: the radius the cohesive
+/// pull-off force (prepare.cpp) and the rolling and twisting bounds (compact_problem.cpp) scale
+/// with, so that both use one definition.
+double reduced_radius(const Model& model, std::size_t a, std::size_t b);
+
+/// Every body's inverse inertia in the world frame at the start of the step (one per body, so
+/// that a body's many contacts do not each rotate its inertia).
+std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state);
+
+}  // namespace rubble
