@@ -15,7 +15,6 @@
 #include "nlgs_solver/compact_problem.hpp"
 #include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/polish.hpp"
-#include "nlgs_solver/prepare.hpp"
 #include "nlgs_solver/sweep_plan.hpp"
 
 namespace rubble {
@@ -79,44 +78,14 @@ void apply_warm_start(const SweepPlan& plan, const ContactList& contacts, bool c
   });
 }
 
-/// What the sweep loop shares with a polish attempt on the ContactList.
-struct PolishContext {
-  const Model& model;
-  const SweepPlan& plan;
-  ContactList& contacts;
-  BodyVelocities& velocity;
-  const std::vector<Mat3>& inverse_inertia;
-};
-
-/// After the polish changed the impulses and velocities: refreshes the compact copy's.
-void refresh_problem(const SweepPlan& plan, const ContactList& contacts, const BodyVelocities& velocity,
-                     CompactProblem& compact) {
-  for (std::size_t p = 0; p < plan.order.size(); ++p) compact.points[p].impulse = contacts[plan.order[p]].impulse;
-  for (std::size_t i = 0; i < compact.bodies.size(); ++i) {
-    compact.bodies[i].linear = velocity.linear[compact.body_id[i]];
-    compact.bodies[i].angular = velocity.angular[compact.body_id[i]];
-  }
-}
-
-/// One polish attempt (SolverOptions::polish_after) on the ContactList: the compact copy is
-/// scattered to it and refreshed from it afterwards.
-PolishResult polish_attempt(const PolishContext& context, const SolverOptions& options, double tolerance, bool parallel,
-                            CompactProblem& compact) {
-  scatter_compact_problem(context.model, context.plan, compact, context.contacts, context.velocity, parallel);
-  BodyCoupledProblem coupled{context.model, context.contacts, context.velocity, context.inverse_inertia};
-  const PolishResult result = polish_contacts(context.model, coupled, options.polish_iterations, tolerance);
-  refresh_problem(context.plan, context.contacts, context.velocity, compact);
-  return result;
-}
-
 /// Sweeps (planned_sweep) until the sweep residual meets the tolerance or max_iterations sweeps
 /// are done, with Newton polishes after polish_after, 2 polish_after, ... sweeps when `may_polish`.
 /// Sets the stats' iterations, converged and polish counts. `parallel` is cleared when a threaded
 /// sweep took longer than its work on one thread: the threads waited for cores busy with other
 /// processes, so the rest of the step is swept serially. Both paths give the same iterate to the
 /// bit, so this timing-based choice cannot change the result.
-SolverStats sweep_until_converged(const SolverOptions& options, const ResidualScale& scale, bool may_polish,
-                                  const PolishContext& context, CompactProblem& compact, bool& parallel) {
+SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan& plan, const ResidualScale& scale,
+                                  bool may_polish, CompactProblem& compact, bool& parallel) {
   SolverStats stats;
   GroupSweeps groups;
   std::vector<std::size_t> positions(compact.size());
@@ -126,8 +95,8 @@ SolverStats sweep_until_converged(const SolverOptions& options, const ResidualSc
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
     const SweepResult sweep =
-        compact.rotation.empty() ? planned_sweep(compact, context.plan, positions, options.relaxation, parallel, groups)
-                                 : planned_sweep(rotating, context.plan, positions, options.relaxation, parallel, groups);
+        compact.rotation.empty() ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
+                                 : planned_sweep(rotating, plan, positions, options.relaxation, parallel, groups);
     if (parallel) {
       double work = 0.0;
       for (const double t : groups.seconds) work += t;
@@ -145,7 +114,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const ResidualSc
           scale.all_squared > 0.0
               ? options.tolerance * std::sqrt((scale.closing_squared + sweep.impulse_squared) / scale.all_squared)
               : options.tolerance;
-      const PolishResult polished = polish_attempt(context, options, tolerance, parallel, compact);
+      const PolishResult polished = polish_compact_problem(compact, plan.order, options.polish_iterations, tolerance);
       stats.newton_iterations += polished.newton_steps;
       if (polished.converged) {
         stats.converged = true;
@@ -197,12 +166,9 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
 
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
                            ContactList& contacts, BodyVelocities& velocity) {
-  // Only a polish works on the ContactList and needs the world inverse inertias as an array (the
-  // compact copy computes its own): when none can run, they are not made (72 bytes a body).
-  // Nor with rolling or twisting resistance: the polish knows the forces' law only.
+  // No polish with rolling or twisting resistance: the polish knows the forces' law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
                           options.polish_attempts_per_step > 0 && !model.contact_laws.any_resists_rotation();
-  const std::vector<Mat3> inverse_inertia = may_polish ? world_inverse_inertias(model, state) : std::vector<Mat3>();
   const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
   // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
   // costs a futex round trip per sweep).
@@ -218,8 +184,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   if (contacts.empty()) {
     stats.converged = true;
   } else {
-    const PolishContext context{model, plan, contacts, velocity, inverse_inertia};
-    stats = sweep_until_converged(options, scale, may_polish, context, compact, parallel);
+    stats = sweep_until_converged(options, plan, scale, may_polish, compact, parallel);
     scatter_compact_problem(model, plan, compact, contacts, velocity, parallel);
   }
   final_residual(compact, plan, scale, parallel, contacts, stats);

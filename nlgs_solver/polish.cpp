@@ -3,7 +3,9 @@
 #include "nlgs_solver/polish.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <utility>
+#include <vector>
 
 #include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/local_problem.hpp"
@@ -21,30 +23,39 @@ struct ScaledProblem {
   std::vector<double> normal_compliance;  ///< d_k = W_kk,nn
 };
 
+/// The polish's view of the compact problem: its unknown k is contact k of the ContactList, that
+/// is point `point[k]` of the copy.
+struct PolishView {
+  CompactProblem& compact;
+  std::vector<std::size_t> point;  ///< the inverse of the plan's order
+  /// Contact k's point.
+  const CompactProblem::Point& at(std::size_t k) const { return compact.points[point[k]]; }
+};
+
 /// Row k of W~ (before the scaling by the frames and d_l): (l, sum of s_k s_l K) for every
 /// contact l sharing a moving body with k, sorted by l with the two bodies' terms merged.
-std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const Model& model, const BodyCoupledProblem& coupled,
+/// `of_body`: the contacts of each moving body (local body index), in increasing order.
+std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
                                                          const std::vector<std::vector<std::size_t>>& of_body,
                                                          std::size_t k) {
-  const ContactList& contacts = coupled.contacts;
-  auto side = [&](const Contact& c, std::size_t body, Vec3& arm) {
-    if (c.id.body_b == body) {
+  auto side = [](const CompactProblem::Point& c, std::uint32_t body, Vec3& arm) {
+    if (c.b == body) {
       arm = c.arm_b;
       return 1.0;
     }
     arm = c.arm_a;
     return -1.0;
   };
-  const Contact& ck = contacts[k];
+  const CompactProblem::Point& ck = view.at(k);
   std::vector<std::pair<std::size_t, Mat3>> row;
-  for (const std::size_t body : {ck.id.body_a, ck.id.body_b}) {
-    if (model.is_fixed(body)) continue;
+  for (const std::uint32_t body : {ck.a, ck.b}) {
+    const CompactProblem::Body& moving = view.compact.bodies[body];
+    if (moving.inverse_mass == 0.0) continue;  // Model::is_fixed
     Vec3 arm_k, arm_l;
     const double sk = side(ck, body, arm_k);
-    const Mat3& inverse_inertia = coupled.inverse_inertia_world[body];
     for (const std::size_t l : of_body[body]) {
-      const double sl = side(contacts[l], body, arm_l);
-      const Mat3 compliance = model.inverse_mass[body] * Mat3::Identity() - skew(arm_k) * inverse_inertia * skew(arm_l);
+      const double sl = side(view.at(l), body, arm_l);
+      const Mat3 compliance = moving.inverse_mass * Mat3::Identity() - skew(arm_k) * moving.inverse_inertia * skew(arm_l);
       row.emplace_back(l, sk * sl * compliance);
     }
   }
@@ -57,24 +68,24 @@ std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const Model& model, con
   return merged;
 }
 
-ScaledProblem assemble_scaled_problem(const Model& model, const BodyCoupledProblem& coupled) {
-  const ContactList& contacts = coupled.contacts;
-  const std::size_t n = contacts.size();
+ScaledProblem assemble_scaled_problem(const PolishView& view) {
+  const std::size_t n = view.point.size();
   ScaledProblem out;
   out.normal_compliance.resize(n);
-  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = contacts[k].delassus(0, 0);
+  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = view.at(k).delassus(0, 0);
   // Contacts of each moving body.
-  std::vector<std::vector<std::size_t>> of_body(model.body_count());
+  std::vector<std::vector<std::size_t>> of_body(view.compact.bodies.size());
   for (std::size_t k = 0; k < n; ++k) {
-    if (!model.is_fixed(contacts[k].id.body_a)) of_body[contacts[k].id.body_a].push_back(k);
-    if (!model.is_fixed(contacts[k].id.body_b)) of_body[contacts[k].id.body_b].push_back(k);
+    for (const std::uint32_t body : {view.at(k).a, view.at(k).b}) {
+      if (view.compact.bodies[body].inverse_mass != 0.0) of_body[body].push_back(k);
+    }
   }
   SparseMatrix& W = out.problem.W;
   W.rows = W.columns = static_cast<int>(3 * n);
   W.row_start.assign(1, 0);
   for (std::size_t k = 0; k < n; ++k) {
-    std::vector<std::pair<std::size_t, Mat3>> blocks = coupled_blocks(model, coupled, of_body, k);
-    for (auto& [l, m] : blocks) m = contacts[k].frame.transpose() * m * contacts[l].frame / out.normal_compliance[l];
+    std::vector<std::pair<std::size_t, Mat3>> blocks = coupled_blocks(view, of_body, k);
+    for (auto& [l, m] : blocks) m = view.at(k).frame.transpose() * m * view.at(l).frame / out.normal_compliance[l];
     for (int i = 0; i < 3; ++i) {
       for (const auto& [l, m] : blocks) {
         for (int j = 0; j < 3; ++j) {
@@ -86,7 +97,7 @@ ScaledProblem assemble_scaled_problem(const Model& model, const BodyCoupledProbl
     }
   }
   out.problem.mu.resize(n);
-  for (std::size_t k = 0; k < n; ++k) out.problem.mu[k] = contacts[k].friction_coefficient;
+  for (std::size_t k = 0; k < n; ++k) out.problem.mu[k] = view.at(k).friction_coefficient;
   return out;
 }
 
@@ -103,16 +114,18 @@ std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<dou
 
 }  // namespace
 
-PolishResult polish_contacts(const Model& model, BodyCoupledProblem& coupled, int iterations, double tolerance) {
-  ContactList& contacts = coupled.contacts;
-  const std::size_t n = contacts.size();
-  ScaledProblem scaled = assemble_scaled_problem(model, coupled);
+PolishResult polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
+                                    double tolerance) {
+  PolishView view{compact, std::vector<std::size_t>(order.size())};
+  for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
+  const std::size_t n = view.point.size();
+  ScaledProblem scaled = assemble_scaled_problem(view);
   LocalProblem& problem = scaled.problem;
   std::vector<double> r(3 * n), u(3 * n);
   for (std::size_t k = 0; k < n; ++k) {
-    const Vec3 velocity = coupled.local_velocity(k);
+    const Vec3 velocity = compact.local_velocity(view.point[k]);
     for (int i = 0; i < 3; ++i) {
-      r[3 * k + static_cast<std::size_t>(i)] = scaled.normal_compliance[k] * contacts[k].impulse[i];
+      r[3 * k + static_cast<std::size_t>(i)] = scaled.normal_compliance[k] * view.at(k).impulse[i];
       u[3 * k + static_cast<std::size_t>(i)] = velocity[i];
     }
   }
@@ -127,11 +140,12 @@ PolishResult polish_contacts(const Model& model, BodyCoupledProblem& coupled, in
   if (error < before) {
     for (std::size_t k = 0; k < n; ++k) {
       // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
+      const std::size_t p = view.point[k];
       const Vec3 next = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
-                                                  contacts[k].friction_coefficient);
-      const Vec3 delta = next - contacts[k].impulse;
-      contacts[k].impulse = next;
-      coupled.apply_impulse_change(k, delta);
+                                                  compact.points[p].friction_coefficient);
+      const Vec3 delta = next - compact.points[p].impulse;
+      compact.points[p].impulse = next;
+      compact.apply_impulse_change(p, delta);
     }
   }
   result.converged = error <= tolerance;

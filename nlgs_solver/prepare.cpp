@@ -33,6 +33,19 @@ double normal_velocity_target(const Contact& c, double free_normal_velocity, con
   return rebound > 0.0 ? rebound : std::min(closing_velocity, 0.0);
 }
 
+/// Every body's inverse inertia in the world frame at the start of the step (one per body, so
+/// that a body's many contacts do not each rotate its inertia).
+std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state) {
+  std::vector<Mat3> result(model.body_count());
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
+#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
+  for (std::ptrdiff_t i = 0; i < n; ++i) {
+    const auto b = static_cast<std::size_t>(i);
+    result[b] = world_inverse_inertia(model, b, state.orientation[b]);
+  }
+  return result;
+}
+
 /// K = m^-1 I - [arm]x I^-1 [arm]x: the point's velocity change per unit impulse at that point.
 Mat3 point_compliance(double inverse_mass, const Mat3& inverse_inertia, const Vec3& arm) {
   const Mat3 cross = skew(arm);
@@ -65,18 +78,6 @@ std::vector<double> cohesive_impulses(const Model& model, const ContactList& con
 }
 
 }  // namespace
-
-std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state) {
-  std::vector<Mat3> result(model.body_count());
-  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(model.body_count());
-#pragma omp parallel for schedule(static) if (n >= min_parallel_items)
-  for (std::ptrdiff_t i = 0; i < n; ++i) {
-    const auto b = static_cast<std::size_t>(i);
-    result[b] = world_inverse_inertia(model, b, state.orientation[b]);
-  }
-  return result;
-}
-
 
 double reduced_radius(const Model& model, std::size_t a, std::size_t b) {
   const auto radius = [&](std::size_t body) { return std::cbrt(3.0 * model.volume[body] / (4.0 * std::numbers::pi)); };

@@ -5,10 +5,7 @@
 // preparation shares with the other parts of the solver.
 #include <cstddef>
 
-#include <vector>
-
 #include "core/model.hpp"
-#include "core/state.hpp"
 
 namespace rubble {
 
@@ -17,9 +14,5 @@ namespace rubble {
 /// pull-off force (prepare.cpp) and the rolling and twisting bounds (compact_problem.cpp) scale
 /// with, so that both use one definition.
 double reduced_radius(const Model& model, std::size_t a, std::size_t b);
-
-/// Every body's inverse inertia in the world frame at the start of the step (one per body, so
-/// that a body's many contacts do not each rotate its inertia).
-std::vector<Mat3> world_inverse_inertias(const Model& model, const State& state);
 
 }  // namespace rubble
