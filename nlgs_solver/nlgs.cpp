@@ -114,7 +114,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
           scale.all_squared > 0.0
               ? options.tolerance * std::sqrt((scale.closing_squared + sweep.impulse_squared) / scale.all_squared)
               : options.tolerance;
-      const PolishResult polished = polish_compact_problem(compact, plan.order, options.polish_iterations, tolerance);
+      const PolishOutcome polished = polish_compact_problem(compact, plan.order, options.polish_iterations, tolerance);
       stats.newton_iterations += polished.newton_steps;
       if (polished.converged) {
         stats.converged = true;

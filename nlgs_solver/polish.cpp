@@ -68,6 +68,7 @@ std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
   return merged;
 }
 
+/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller.
 ScaledProblem assemble_scaled_problem(const PolishView& view) {
   const std::size_t n = view.point.size();
   ScaledProblem out;
@@ -114,7 +115,7 @@ std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<dou
 
 }  // namespace
 
-PolishResult polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
+PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
                                     double tolerance) {
   PolishView view{compact, std::vector<std::size_t>(order.size())};
   for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
@@ -135,7 +136,7 @@ PolishResult polish_compact_problem(CompactProblem& compact, std::span<const std
   polish.polish_iterations = iterations;
   double error = fclib_error(problem, r, u);
   const double before = error;
-  PolishResult result;
+  PolishOutcome result;
   result.newton_steps = polish_solution(problem, polish, r, u, error);
   if (error < before) {
     for (std::size_t k = 0; k < n; ++k) {

@@ -11,7 +11,7 @@
 namespace rubble {
 
 /// What one polish did.
-struct PolishResult {
+struct PolishOutcome {
   int newton_steps = 0;    ///< Levenberg-Marquardt steps taken
   bool converged = false;  ///< the tolerance was met
 };
@@ -24,7 +24,7 @@ struct PolishResult {
 /// the sweeps', because that order fixes the rounding of the factorisation and of the velocity
 /// updates, and the polish computed in it before it moved onto the compact copy (same results to
 /// the bit).
-PolishResult polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
+PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
                                     double tolerance);
 
 }  // namespace rubble

@@ -88,6 +88,7 @@ struct BlockTree {
   std::vector<std::size_t> group_of_node;  ///< the inverse of by_phase
 };
 
+/// The tree over `blocks` blocks and its group numbering.
 BlockTree make_block_tree(std::size_t blocks) {
   BlockTree tree;
   build_block_tree(tree.nodes, 0, blocks);
@@ -105,10 +106,11 @@ BlockTree make_block_tree(std::size_t blocks) {
 /// The contacts' moving bodies in order of first appearance, and per body (indexed by body) the
 /// number of contact ends it carries: the weight that balances the blocks.
 struct MovingBodies {
-  std::vector<std::size_t> bodies;
-  std::vector<std::size_t> ends;
+  std::vector<std::size_t> bodies;  ///< model indices, in order of first appearance in the contacts
+  std::vector<std::size_t> ends;    ///< per model body, its contact ends (0 for walls and free bodies)
 };
 
+/// The moving bodies of `contacts` and their contact-end counts.
 MovingBodies moving_bodies(const Model& model, const ContactList& contacts) {
   MovingBodies out;
   out.ends.assign(model.body_count(), 0);
