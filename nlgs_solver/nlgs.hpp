@@ -52,8 +52,6 @@ struct SolverStats {
   int polish_attempts = 0;     ///< Newton polishes started (see SolverOptions::polish_after)
   int newton_iterations = 0;   ///< Newton steps taken by those polishes
   std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
-  double prepare_seconds = 0;  ///< wall time of the preparation (Delassus blocks, targets)
-  double sweep_seconds = 0;    ///< wall time of the sweeps
 };
 
 /// The fixed order in which every sweep of one step visits the contacts, and which parts of it may
@@ -73,16 +71,17 @@ struct SweepPlan {
 };
 
 /// The sweep order of `contacts` (see SweepPlan) from the bodies' positions at the start of the
-/// step; deterministic (ties broken by index). `block_count` >= 1.
+/// step; deterministic (ties broken by index). `block_count` >= 1. In sweep_plan.cpp.
 SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& contacts, int block_count);
 
 /// Fills each contact's arms, Delassus block, law and normal target velocity from the model, the
-/// state at the start of the step and the free velocities (LMGC90's "prep_nlgs").
+/// state at the start of the step and the free velocities (LMGC90's "prep_nlgs"). In prepare.cpp.
 void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
                       const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts);
 
 /// Solves for the contact impulses and updates `velocity` (which holds the free velocity on
 /// entry and v_{n+1} = v_free + M^-1 H r on exit). Contacts hold warm-start impulses on entry.
+/// In nlgs.cpp: warm start, sweeps until converged (with Newton polishes, polish.cpp), final residual.
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
                            ContactList& contacts, BodyVelocities& velocity);
 

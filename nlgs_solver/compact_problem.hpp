@@ -1,0 +1,182 @@
+#pragma once
+// The sweeps' compact copy of a step's contact problem (nlgs_solver/README.md, "Sweep order and
+// threads", Cache): the contacts in the plan's order and their bodies in Morton order, gathered
+// from the ContactList and the body velocities once per step and scattered back after the solve.
+// Everything in solve_contacts after the gather (warm start, sweeps, polish, residuals) works on
+// it. W = H^T M^-1 H is never assembled: u_k is read off the two bodies' current velocities and an
+// impulse change is applied to them at once (Jean 1999).
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "core/model.hpp"
+#include "core/state.hpp"
+#include "nlgs_solver/nlgs.hpp"
+#include "nlgs_solver/sweep.hpp"
+
+namespace rubble {
+
+/// The contact problem in the plan's order (point p is contact plan.order[p]; bodies in Morton
+/// order, then the walls): a sweep reads its contacts one after the other in memory and the
+/// velocities of bodies near in space from nearby memory, instead of hopping through the
+/// ContactList (sorted by body id) and the body arrays (numbered as the generator placed the
+/// grains). Provides the Problem interface of nlgs_sweep (sweep.hpp).
+struct CompactProblem {
+  /// One contact point: what a sweep reads and writes of it.
+  struct Point {
+    Mat3 frame;                     ///< contact frame (normal, t, s) as columns, world
+    Mat3 delassus;                  ///< W_kk in the contact frame
+    Vec3 arm_a, arm_b;              ///< contact point minus each body's centre, world
+    Vec3 impulse;                   ///< r_k in the contact frame
+    double friction_coefficient;    ///< mu
+    double normal_velocity_target;  ///< b, folded into the local velocity
+    std::uint32_t a, b;             ///< local body indices (into `bodies`)
+  };
+  /// One body: its current velocity and what an impulse does to it.
+  struct Body {
+    Vec3 linear, angular;  ///< current velocity (free velocity plus the impulses applied so far)
+    Mat3 inverse_inertia;  ///< world inverse inertia at the start of the step
+    double inverse_mass;   ///< 0 for a wall (Model::is_fixed)
+  };
+  /// Rolling and twisting resistance of a sphere contact (ContactLaw::rolling_friction,
+  /// twisting_friction): the contact's angular block, solved after its force in each sweep.
+  struct Rotation {
+    double compliance;   ///< a: relative angular velocity per unit angular impulse (isotropic for spheres), 1/(kg m^2)
+    double twist_bound;  ///< mu_t r_eff, m: bound on the twisting impulse per unit normal impulse
+    double roll_bound;   ///< mu_r r_eff, m: bound on the rolling impulse per unit normal impulse
+    double radius;       ///< r_eff, m: turns the block's residual into velocity units
+    Vec3 impulse;        ///< (twist about n, roll about t, roll about s), N m s; from zero each step
+  };
+  /// rotation_of_point's value for a point without a rotation block.
+  static constexpr std::uint32_t no_rotation = std::numeric_limits<std::uint32_t>::max();
+  std::vector<Point> points;                     ///< in the plan's order
+  std::vector<Body> bodies;                      ///< moving bodies in Morton order, then walls
+  std::vector<std::size_t> body_id;              ///< model index of each local body
+  std::vector<std::uint32_t> rotation_of_point;  ///< per point, index into `rotation` (empty: no such law in the scene)
+  std::vector<Rotation> rotation;                ///< the rotation blocks
+
+  /// Number of contact points.
+  std::size_t size() const { return points.size(); }
+  /// W_kk of point k.
+  const Mat3& delassus(std::size_t k) const { return points[k].delassus; }
+  /// mu of point k.
+  double friction_coefficient(std::size_t k) const { return points[k].friction_coefficient; }
+  /// r_k of point k.
+  Vec3& impulse(std::size_t k) { return points[k].impulse; }
+
+  /// u = R^T (v_b + w_b x arm_b - v_a - w_a x arm_a) - b e_n: the target velocity b is folded in,
+  /// so the law reads 0 <= r_n _|_ u_n >= 0.
+  Vec3 local_velocity(std::size_t k) const {
+    const Point& c = points[k];
+    const Body& a = bodies[c.a];
+    const Body& b = bodies[c.b];
+    const Vec3 relative = b.linear + b.angular.cross(c.arm_b) - a.linear - a.angular.cross(c.arm_a);
+    Vec3 u = c.frame.transpose() * relative;
+    u.x() -= c.normal_velocity_target;
+    return u;
+  }
+
+  /// Applies the change `delta` of point k's impulse to its two bodies (v += M^-1 H delta).
+  /// Walls are never written: contacts of concurrent sweep groups may share a wall.
+  void apply_impulse_change(std::size_t k, const Vec3& delta) {
+    const Point& c = points[k];
+    const Vec3 p = c.frame * delta;  // world impulse on b; -p on a
+    Body& b = bodies[c.b];
+    Body& a = bodies[c.a];
+    if (b.inverse_mass != 0.0) {  // Model::is_fixed
+      b.linear += b.inverse_mass * p;
+      b.angular += b.inverse_inertia * c.arm_b.cross(p);
+    }
+    if (a.inverse_mass != 0.0) {
+      a.linear -= a.inverse_mass * p;
+      a.angular -= a.inverse_inertia * c.arm_a.cross(p);
+    }
+  }
+
+  /// The angular impulse m of point k's rotation block that the law allows for the current
+  /// relative angular velocity: the one that stops the relative rotation (m - omega / a),
+  /// projected on |m_n| <= mu_t r_eff r_n and ||(m_t, m_s)|| <= mu_r r_eff r_n. For spheres the
+  /// angular compliance is isotropic, so this projection is the exact solution of the block (the
+  /// minimum of the block's kinetic energy over the bounds), as the force's local solver is exact.
+  /// r_n is the normal impulse including cohesion (the shifted r~).
+  Vec3 allowed_rotation_impulse(std::size_t k, const Rotation& rotation) const {
+    const Point& c = points[k];
+    const Vec3 omega = c.frame.transpose() * (bodies[c.b].angular - bodies[c.a].angular);
+    const double normal = std::max(c.impulse.x(), 0.0);
+    Vec3 m = rotation.impulse - omega / rotation.compliance;
+    m.x() = std::clamp(m.x(), -rotation.twist_bound * normal, rotation.twist_bound * normal);
+    const double roll = std::hypot(m.y(), m.z()), roll_limit = rotation.roll_bound * normal;
+    if (roll > roll_limit) {
+      m.y() *= roll_limit / roll;
+      m.z() *= roll_limit / roll;
+    }
+    return m;
+  }
+
+  /// Residual of point k's rotation block, natural map m - P(m - omega / a) in velocity units
+  /// (times a r_eff, as the force's W_nn), and its impulse term; zeros when it has none.
+  std::pair<double, double> rotation_residual(std::size_t k) const {
+    if (rotation_of_point.empty() || rotation_of_point[k] == no_rotation) return {0.0, 0.0};
+    const Rotation& r = rotation[rotation_of_point[k]];
+    const double scale = r.compliance * r.radius;
+    return {(scale * (r.impulse - allowed_rotation_impulse(k, r))).squaredNorm(), (scale * r.impulse).squaredNorm()};
+  }
+
+  /// The sweep's rotation step of point k, right after the force's update (RotatingProblem): the
+  /// block's exact solution, its residual and impulse terms added to `sums`.
+  void rotation_step(std::size_t k, SweepResult& sums) {
+    if (rotation_of_point[k] == no_rotation) return;
+    Rotation& r = rotation[rotation_of_point[k]];
+    const Vec3 next = allowed_rotation_impulse(k, r);
+    const double scale = r.compliance * r.radius;
+    sums.residual_squared += (scale * (r.impulse - next)).squaredNorm();
+    sums.impulse_squared += (scale * next).squaredNorm();
+    const Point& c = points[k];
+    const Vec3 change = c.frame * (next - r.impulse);  // world angular impulse on b; -change on a
+    r.impulse = next;
+    Body& b = bodies[c.b];
+    Body& a = bodies[c.a];
+    if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * change;
+    if (a.inverse_mass != 0.0) a.angular -= a.inverse_inertia * change;
+  }
+};
+
+/// The compact problem with its rotation blocks: what the sweeps see when some contact resists
+/// rolling or twisting (nlgs_sweep then calls resist_rotation after each force). A separate type,
+/// so that the sweeps of a scene without such laws carry no per-contact test for them.
+struct RotatingProblem {
+  CompactProblem& compact;  ///< the problem itself
+  /// Number of contact points.
+  std::size_t size() const { return compact.size(); }
+  /// W_kk of point k.
+  const Mat3& delassus(std::size_t k) const { return compact.delassus(k); }
+  /// mu of point k.
+  double friction_coefficient(std::size_t k) const { return compact.friction_coefficient(k); }
+  /// r_k of point k.
+  Vec3& impulse(std::size_t k) { return compact.impulse(k); }
+  /// u_k for the current impulses (CompactProblem::local_velocity).
+  Vec3 local_velocity(std::size_t k) const { return compact.local_velocity(k); }
+  /// CompactProblem::apply_impulse_change.
+  void apply_impulse_change(std::size_t k, const Vec3& delta) { compact.apply_impulse_change(k, delta); }
+  /// CompactProblem::rotation_step.
+  void resist_rotation(std::size_t k, SweepResult& sums) { compact.rotation_step(k, sums); }
+};
+
+/// The compact copy of `contacts` in the plan's order, with the velocities `velocity` (the free
+/// velocities at the start of the solve) and the contacts' impulses (not yet applied to the
+/// velocities). Each body's world inverse inertia is computed here (the same function as the
+/// preparation's, hence the same value), so no per-body array is kept beside the copy.
+/// `parallel`: fill the bodies and points concurrently.
+CompactProblem gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan,
+                                      const ContactList& contacts, const BodyVelocities& velocity, bool parallel);
+
+/// Copies the compact problem's impulses back into `contacts` and its moving bodies' velocities
+/// into `velocity` (walls are left as they are).
+void scatter_compact_problem(const Model& model, const SweepPlan& plan, const CompactProblem& compact,
+                             ContactList& contacts, BodyVelocities& velocity, bool parallel);
+
+}  // namespace rubble

@@ -1,0 +1,156 @@
+// The simulation's Newton polish (polish.hpp): W assembled in scaled impulses, then the
+// file-backed problems' Levenberg-Marquardt polish (local_problem.cpp) from the sweeps' iterate.
+#include "nlgs_solver/polish.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "nlgs_solver/coulomb.hpp"
+#include "nlgs_solver/local_problem.hpp"
+
+namespace rubble {
+namespace {
+
+/// The contacts' problem as explicit data for the Newton polish, in scaled impulses
+/// r~_k = W_kk,nn r_k (velocity units), so that the polish's error measure (natural map with
+/// rho = 1 on r~, u) is the sweeps' criterion (natural map with rho = W_nn on r, u):
+/// u = W~ r~ + q with W~_kl = W_kl / d_l, and W_kl = R_k^T (sum over shared moving bodies of
+/// s_k s_l K(arm_k, arm_l)) R_l, K(x, y) = m^-1 I - [x] I^-1 [y], s = +1 on the b side, -1 on a.
+struct ScaledProblem {
+  LocalProblem problem;                   ///< W~, q, mu
+  std::vector<double> normal_compliance;  ///< d_k = W_kk,nn
+};
+
+/// The polish's view of the compact problem: its unknown k is contact k of the ContactList, that
+/// is point `point[k]` of the copy.
+struct PolishView {
+  CompactProblem& compact;
+  std::vector<std::size_t> point;  ///< the inverse of the plan's order
+  /// Contact k's point.
+  const CompactProblem::Point& at(std::size_t k) const { return compact.points[point[k]]; }
+};
+
+/// Row k of W~ (before the scaling by the frames and d_l): (l, sum of s_k s_l K) for every
+/// contact l sharing a moving body with k, sorted by l with the two bodies' terms merged.
+/// `of_body`: the contacts of each moving body (local body index), in increasing order.
+std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
+                                                         const std::vector<std::vector<std::size_t>>& of_body,
+                                                         std::size_t k) {
+  auto side = [](const CompactProblem::Point& c, std::uint32_t body, Vec3& arm) {
+    if (c.b == body) {
+      arm = c.arm_b;
+      return 1.0;
+    }
+    arm = c.arm_a;
+    return -1.0;
+  };
+  const CompactProblem::Point& ck = view.at(k);
+  std::vector<std::pair<std::size_t, Mat3>> row;
+  for (const std::uint32_t body : {ck.a, ck.b}) {
+    const CompactProblem::Body& moving = view.compact.bodies[body];
+    if (moving.inverse_mass == 0.0) continue;  // Model::is_fixed
+    Vec3 arm_k, arm_l;
+    const double sk = side(ck, body, arm_k);
+    for (const std::size_t l : of_body[body]) {
+      const double sl = side(view.at(l), body, arm_l);
+      const Mat3 compliance = moving.inverse_mass * Mat3::Identity() - skew(arm_k) * moving.inverse_inertia * skew(arm_l);
+      row.emplace_back(l, sk * sl * compliance);
+    }
+  }
+  std::sort(row.begin(), row.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<std::pair<std::size_t, Mat3>> merged;
+  for (const auto& [l, m] : row) {
+    if (!merged.empty() && merged.back().first == l) merged.back().second += m;
+    else merged.emplace_back(l, m);
+  }
+  return merged;
+}
+
+/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller.
+ScaledProblem assemble_scaled_problem(const PolishView& view) {
+  const std::size_t n = view.point.size();
+  ScaledProblem out;
+  out.normal_compliance.resize(n);
+  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = view.at(k).delassus(0, 0);
+  // Contacts of each moving body.
+  std::vector<std::vector<std::size_t>> of_body(view.compact.bodies.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    for (const std::uint32_t body : {view.at(k).a, view.at(k).b}) {
+      if (view.compact.bodies[body].inverse_mass != 0.0) of_body[body].push_back(k);
+    }
+  }
+  SparseMatrix& W = out.problem.W;
+  W.rows = W.columns = static_cast<int>(3 * n);
+  W.row_start.assign(1, 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::vector<std::pair<std::size_t, Mat3>> blocks = coupled_blocks(view, of_body, k);
+    for (auto& [l, m] : blocks) m = view.at(k).frame.transpose() * m * view.at(l).frame / out.normal_compliance[l];
+    for (int i = 0; i < 3; ++i) {
+      for (const auto& [l, m] : blocks) {
+        for (int j = 0; j < 3; ++j) {
+          W.column.push_back(static_cast<int>(3 * l) + j);
+          W.value.push_back(m(i, j));
+        }
+      }
+      W.row_start.push_back(static_cast<int>(W.column.size()));
+    }
+  }
+  out.problem.mu.resize(n);
+  for (std::size_t k = 0; k < n; ++k) out.problem.mu[k] = view.at(k).friction_coefficient;
+  return out;
+}
+
+/// q = u - W~ r~: the local velocities without any impulse.
+std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<double>& r, const std::vector<double>& u) {
+  std::vector<double> q = u;
+  for (std::size_t row = 0; row < static_cast<std::size_t>(W.rows); ++row) {
+    for (auto e = static_cast<std::size_t>(W.row_start[row]); e < static_cast<std::size_t>(W.row_start[row + 1]); ++e) {
+      q[row] -= W.value[e] * r[static_cast<std::size_t>(W.column[e])];
+    }
+  }
+  return q;
+}
+
+}  // namespace
+
+PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
+                                    double tolerance) {
+  PolishView view{compact, std::vector<std::size_t>(order.size())};
+  for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
+  const std::size_t n = view.point.size();
+  ScaledProblem scaled = assemble_scaled_problem(view);
+  LocalProblem& problem = scaled.problem;
+  std::vector<double> r(3 * n), u(3 * n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3 velocity = compact.local_velocity(view.point[k]);
+    for (int i = 0; i < 3; ++i) {
+      r[3 * k + static_cast<std::size_t>(i)] = scaled.normal_compliance[k] * view.at(k).impulse[i];
+      u[3 * k + static_cast<std::size_t>(i)] = velocity[i];
+    }
+  }
+  problem.q = free_velocities(problem.W, r, u);
+  LocalProblemOptions polish;
+  polish.tolerance = tolerance;
+  polish.polish_iterations = iterations;
+  double error = fclib_error(problem, r, u);
+  const double before = error;
+  PolishOutcome result;
+  result.newton_steps = polish_solution(problem, polish, r, u, error);
+  if (error < before) {
+    for (std::size_t k = 0; k < n; ++k) {
+      // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
+      const std::size_t p = view.point[k];
+      const Vec3 next = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
+                                                  compact.points[p].friction_coefficient);
+      const Vec3 delta = next - compact.points[p].impulse;
+      compact.points[p].impulse = next;
+      compact.apply_impulse_change(p, delta);
+    }
+  }
+  result.converged = error <= tolerance;
+  return result;
+}
+
+}  // namespace rubble
