@@ -5,6 +5,7 @@
 
 namespace rubble {
 
+using Vec2 = Eigen::Vector2d;     ///< a 2-vector (the tangential components of a contact-frame vector)
 using Vec3 = Eigen::Vector3d;     ///< a 3-vector (position m, velocity m/s, impulse N·s, ...)
 using Mat3 = Eigen::Matrix3d;     ///< a 3x3 matrix (inertia, rotation, Delassus block)
 using Quat = Eigen::Quaterniond;  ///< a unit quaternion: body frame -> world frame

@@ -21,6 +21,11 @@ struct Material {
 struct ContactLaw {
   double friction_coefficient = 0.0;  ///< Coulomb's mu >= 0
   double normal_restitution = 0.0;    ///< Newton's e_n in [0, 1]
+  /// Tangential restitution e_t in [0, 1]: Coulomb's law holds for the weighted tangential
+  /// velocity u_t+ + e_t u_t- (Moreau 1988; Fremond 2002), so a sticking impact reverses the
+  /// contact point's sliding velocity times e_t (a superball), and e_t = 0 is plain Coulomb
+  /// (nlgs_solver/README.md, "Tangential restitution").
+  double tangential_restitution = 0.0;
   /// Cohesion: the pull-off force of a pair of bodies in contact, N (>= 0). A cohesive contact may
   /// pull up to this force before it opens, and Coulomb's cone acts on the normal force including
   /// it (the cone shifted by the cohesive impulse; nlgs_solver/README.md, "Cohesion").
@@ -42,6 +47,8 @@ struct ContactLaw {
   bool cohesive() const { return cohesion > 0.0 || work_of_adhesion > 0.0; }
   /// Whether the law resists rolling or twisting.
   bool resists_rotation() const { return rolling_friction > 0.0 || twisting_friction > 0.0; }
+  /// Whether the law has tangential restitution.
+  bool restitutes_tangentially() const { return tangential_restitution > 0.0; }
 };
 
 /// Contact laws by material pair, symmetric: law(a, b) == law(b, a).
@@ -71,6 +78,12 @@ struct ContactLawTable {
   bool any_resists_rotation() const {
     for (const ContactLaw& law : laws)
       if (law.resists_rotation()) return true;
+    return false;
+  }
+  /// Whether any pair's law has tangential restitution.
+  bool any_tangential_restitution() const {
+    for (const ContactLaw& law : laws)
+      if (law.restitutes_tangentially()) return true;
     return false;
   }
 };

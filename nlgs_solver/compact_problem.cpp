@@ -32,6 +32,24 @@ void gather_rotations(const Model& model, const SweepPlan& plan, const ContactLi
   }
 }
 
+/// Tangential restitution (ContactLaw::tangential_restitution): each point's tangential target
+/// -e_t u_t-, u_t- the tangential part of the contact point's relative velocity at t_n (the
+/// state's velocities, as Contact::normal_velocity_before for e_n).
+void gather_tangential_targets(const Model& model, const State& state, const SweepPlan& plan,
+                               const ContactList& contacts, CompactProblem& out) {
+  out.tangential_target.assign(plan.order.size(), Vec2::Zero());
+  for (std::size_t p = 0; p < plan.order.size(); ++p) {
+    const Contact& c = contacts[plan.order[p]];
+    const std::size_t a = c.id.body_a, b = c.id.body_b;
+    const double restitution = model.contact_laws.get(model.material[a], model.material[b]).tangential_restitution;
+    if (restitution == 0.0) continue;
+    const Vec3 relative = state.velocity[b] + state.angular_velocity[b].cross(c.arm_b) - state.velocity[a] -
+                          state.angular_velocity[a].cross(c.arm_a);
+    const Vec3 before = c.frame.transpose() * relative;
+    out.tangential_target[p] = -restitution * Vec2(before.y(), before.z());
+  }
+}
+
 /// The local numbering of the bodies: the plan's moving bodies in Morton order, then the walls in
 /// the order the contacts meet them (a serial pass over the ids). Returns each model body's local
 /// index (or max() for bodies of no contact) and fills out.body_id.
@@ -84,6 +102,7 @@ CompactProblem gather_compact_problem(const Model& model, const State& state, co
     }
   }
   if (model.contact_laws.any_resists_rotation()) gather_rotations(model, plan, contacts, out);
+  if (model.contact_laws.any_tangential_restitution()) gather_tangential_targets(model, state, plan, contacts, out);
   return out;
 }
 

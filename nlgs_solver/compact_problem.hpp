@@ -58,6 +58,10 @@ struct CompactProblem {
   std::vector<std::size_t> body_id;              ///< model index of each local body
   std::vector<std::uint32_t> rotation_of_point;  ///< per point, index into `rotation` (empty: no such law in the scene)
   std::vector<Rotation> rotation;                ///< the rotation blocks
+  /// Per point, the tangential part of the target velocity, -e_t u_t- (ContactLaw::
+  /// tangential_restitution; u_t- the contact point's tangential velocity at t_n), m/s; empty when
+  /// no law of the scene has e_t > 0. Kept out of Point so that plain scenes' sweeps read no more.
+  std::vector<Vec2> tangential_target;
 
   /// Number of contact points.
   std::size_t size() const { return points.size(); }
@@ -77,6 +81,17 @@ struct CompactProblem {
     const Vec3 relative = b.linear + b.angular.cross(c.arm_b) - a.linear - a.angular.cross(c.arm_a);
     Vec3 u = c.frame.transpose() * relative;
     u.x() -= c.normal_velocity_target;
+    return u;
+  }
+
+  /// u_k with the tangential target folded in too: u - b_t (the law on u_t+ + e_t u_t-). The
+  /// residuals and ExtendedProblem read this one; plain sweeps read local_velocity.
+  Vec3 full_local_velocity(std::size_t k) const {
+    Vec3 u = local_velocity(k);
+    if (!tangential_target.empty()) {
+      u.y() -= tangential_target[k].x();
+      u.z() -= tangential_target[k].y();
+    }
     return u;
   }
 
@@ -145,10 +160,11 @@ struct CompactProblem {
   }
 };
 
-/// The compact problem with its rotation blocks: what the sweeps see when some contact resists
-/// rolling or twisting (nlgs_sweep then calls resist_rotation after each force). A separate type,
-/// so that the sweeps of a scene without such laws carry no per-contact test for them.
-struct RotatingProblem {
+/// The compact problem with the laws beyond Signorini-Coulomb-Newton: what the sweeps see when some
+/// contact resists rolling or twisting (nlgs_sweep then calls resist_rotation after each force) or
+/// restitutes tangentially (the tangential target in the local velocity). A separate type, so
+/// that the sweeps of a scene without such laws carry no per-contact test for them.
+struct ExtendedProblem {
   CompactProblem& compact;  ///< the problem itself
   /// Number of contact points.
   std::size_t size() const { return compact.size(); }
@@ -158,12 +174,14 @@ struct RotatingProblem {
   double friction_coefficient(std::size_t k) const { return compact.friction_coefficient(k); }
   /// r_k of point k.
   Vec3& impulse(std::size_t k) { return compact.impulse(k); }
-  /// u_k for the current impulses (CompactProblem::local_velocity).
-  Vec3 local_velocity(std::size_t k) const { return compact.local_velocity(k); }
+  /// u_k for the current impulses, tangential target included (CompactProblem::full_local_velocity).
+  Vec3 local_velocity(std::size_t k) const { return compact.full_local_velocity(k); }
   /// CompactProblem::apply_impulse_change.
   void apply_impulse_change(std::size_t k, const Vec3& delta) { compact.apply_impulse_change(k, delta); }
-  /// CompactProblem::rotation_step.
-  void resist_rotation(std::size_t k, SweepResult& sums) { compact.rotation_step(k, sums); }
+  /// CompactProblem::rotation_step, for scenes with rotation blocks.
+  void resist_rotation(std::size_t k, SweepResult& sums) {
+    if (!compact.rotation.empty()) compact.rotation_step(k, sums);
+  }
 };
 
 /// The compact copy of `contacts` in the plan's order, with the velocities `velocity` (the free

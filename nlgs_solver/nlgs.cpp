@@ -42,7 +42,7 @@ ResidualScale residual_scale(const CompactProblem& compact, const SweepPlan& pla
     const auto g = static_cast<std::size_t>(i);
     double closing = 0.0, all = 0.0;
     for (std::size_t p = plan.group_start[g]; p < plan.group_start[g + 1]; ++p) {
-      const Vec3 q = compact.local_velocity(p);
+      const Vec3 q = compact.full_local_velocity(p);
       all += q.squaredNorm();
       if (q.x() < 0.0) closing += q.squaredNorm();
     }
@@ -90,13 +90,14 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   GroupSweeps groups;
   std::vector<std::size_t> positions(compact.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
-  RotatingProblem rotating{compact};
+  ExtendedProblem extended{compact};
+  const bool plain = compact.rotation.empty() && compact.tangential_target.empty();
   int next_polish = options.polish_after;
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
     const SweepResult sweep =
-        compact.rotation.empty() ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
-                                 : planned_sweep(rotating, plan, positions, options.relaxation, parallel, groups);
+        plain ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
+              : planned_sweep(extended, plan, positions, options.relaxation, parallel, groups);
     if (parallel) {
       double work = 0.0;
       for (const double t : groups.seconds) work += t;
@@ -140,7 +141,7 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
       const CompactProblem::Point& point = compact.points[p];
       const Vec3& r = point.impulse;
       group_residual[g] +=
-          natural_map(r, compact.local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
+          natural_map(r, compact.full_local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
       group_impulse[g] += (point.delassus(0, 0) * r).squaredNorm();
       const auto [spin_residual, spin_impulse] = compact.rotation_residual(p);
       group_residual[g] += spin_residual;
@@ -166,9 +167,11 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
 
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
                            ContactList& contacts, BodyVelocities& velocity) {
-  // No polish with rolling or twisting resistance: the polish knows the forces' law only.
+  // No polish with rolling or twisting resistance or tangential restitution: the polish knows the
+  // Signorini-Coulomb-Newton law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
-                          options.polish_attempts_per_step > 0 && !model.contact_laws.any_resists_rotation();
+                          options.polish_attempts_per_step > 0 && !model.contact_laws.any_resists_rotation() &&
+                          !model.contact_laws.any_tangential_restitution();
   const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
   // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
   // costs a futex round trip per sweep).

@@ -739,6 +739,7 @@ class SceneParser {
     ContactLaw law;
     law.friction_coefficient = entry.number("friction", non_negative());
     law.normal_restitution = entry.number_or("restitution", 0.0, closed(0.0, 1.0));
+    law.tangential_restitution = entry.number_or("tangential_restitution", 0.0, closed(0.0, 1.0));
     law.cohesion = entry.number_or("cohesion", 0.0, non_negative());
     law.work_of_adhesion = entry.number_or("work_of_adhesion", 0.0, non_negative());
     law.rolling_friction = entry.number_or("rolling_friction", 0.0, non_negative());
@@ -749,15 +750,16 @@ class SceneParser {
   void parse_contact_laws() {
     const int n = static_cast<int>(scene_.model.materials.size());
     if (const auto fallback = root_.optional_table("default_contact_law")) {
-      fallback->allow_only({"friction", "restitution", "cohesion", "work_of_adhesion", "rolling_friction", "twisting_friction"},
-                          "in [default_contact_law]");
+      fallback->allow_only({"friction", "restitution", "tangential_restitution", "cohesion", "work_of_adhesion",
+                            "rolling_friction", "twisting_friction"},
+                           "in [default_contact_law]");
       default_law_ = parse_law(*fallback);
     }
     scene_.model.contact_laws.reset(n, default_law_.value_or(ContactLaw{}));
     law_defined_.assign(static_cast<std::size_t>(n * n), false);
     for (const TableReader& entry : root_.tables("contact_laws")) {
-      entry.allow_only({"materials", "friction", "restitution", "cohesion", "work_of_adhesion", "rolling_friction",
-                        "twisting_friction"},
+      entry.allow_only({"materials", "friction", "restitution", "tangential_restitution", "cohesion", "work_of_adhesion",
+                        "rolling_friction", "twisting_friction"},
                        "in [[contact_laws]]");
       const toml::node* node = entry.get("materials");
       if (!node) entry.missing("materials", "a pair of material names, e.g. [\"rock\", \"rock\"]");
@@ -1704,6 +1706,9 @@ std::string scene_to_toml(const Scene& scene) {
       out << "\n[[contact_laws]]\nmaterials = [" << material_name(a) << ", " << material_name(b) << "]\n";
       out << "friction = " << format_number(law.friction_coefficient) << "\n";
       out << "restitution = " << format_number(law.normal_restitution) << "\n";
+      if (law.tangential_restitution > 0.0) {
+        out << "tangential_restitution = " << format_number(law.tangential_restitution) << "\n";
+      }
       if (law.cohesion > 0.0) out << "cohesion = " << format_number(law.cohesion) << "\n";
       if (law.work_of_adhesion > 0.0) out << "work_of_adhesion = " << format_number(law.work_of_adhesion) << "\n";
       if (law.rolling_friction > 0.0) out << "rolling_friction = " << format_number(law.rolling_friction) << "\n";

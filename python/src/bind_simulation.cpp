@@ -361,7 +361,8 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
           "set_contact_law",
           [](Simulation& s, const py::object& a, const py::object& b, std::optional<double> friction,
              std::optional<double> restitution, std::optional<double> cohesion, std::optional<double> work_of_adhesion,
-             std::optional<double> rolling_friction, std::optional<double> twisting_friction) {
+             std::optional<double> rolling_friction, std::optional<double> twisting_friction,
+             std::optional<double> tangential_restitution) {
             check_not_stepping(s);
             const Model& model = s.scene().model;
             const int ia = material_id(model, a), ib = material_id(model, b);
@@ -376,14 +377,16 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
             if (work_of_adhesion) law.work_of_adhesion = *work_of_adhesion;
             if (rolling_friction) law.rolling_friction = *rolling_friction;
             if (twisting_friction) law.twisting_friction = *twisting_friction;
+            if (tangential_restitution) law.tangential_restitution = *tangential_restitution;
             s.set_contact_law(ia, ib, law);
           },
           py::arg("material_a"), py::arg("material_b"), py::kw_only(), py::arg("friction") = py::none(),
           py::arg("restitution") = py::none(), py::arg("cohesion") = py::none(), py::arg("work_of_adhesion") = py::none(),
           py::arg("rolling_friction") = py::none(), py::arg("twisting_friction") = py::none(),
+          py::arg("tangential_restitution") = py::none(),
           "Changes the contact law of a material pair (names or ids) from the next step on: friction (mu), "
           "restitution (e_n), cohesion (pull-off force, N), work_of_adhesion (J/m^2), rolling_friction (mu_r), "
-          "twisting_friction (mu_t); keys left out keep their value")
+          "twisting_friction (mu_t), tangential_restitution (e_t); keys left out keep their value")
       .def(
           "contact_law",
           [](const Simulation& s, const py::object& a, const py::object& b) {
@@ -396,11 +399,12 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
             d["work_of_adhesion"] = law.work_of_adhesion;
             d["rolling_friction"] = law.rolling_friction;
             d["twisting_friction"] = law.twisting_friction;
+            d["tangential_restitution"] = law.tangential_restitution;
             return d;
           },
           py::arg("material_a"), py::arg("material_b"),
           "The contact law of a material pair: {'friction', 'restitution', 'cohesion' (N), 'work_of_adhesion' (J/m^2), "
-          "'rolling_friction', 'twisting_friction'}")
+          "'rolling_friction', 'twisting_friction', 'tangential_restitution'}")
       .def_property_readonly("materials",
                              [](const Simulation& s) {
                                py::list names;

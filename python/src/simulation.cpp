@@ -267,6 +267,10 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
   if (!(law.normal_restitution >= 0.0 && law.normal_restitution <= 1.0)) {
     throw std::invalid_argument(fmt::format("restitution: expected a number in [0, 1], got {}", law.normal_restitution));
   }
+  if (!(law.tangential_restitution >= 0.0 && law.tangential_restitution <= 1.0)) {
+    throw std::invalid_argument(
+        fmt::format("tangential_restitution: expected a number in [0, 1], got {}", law.tangential_restitution));
+  }
   if (!(law.cohesion >= 0.0) || !std::isfinite(law.cohesion)) {
     throw std::invalid_argument(fmt::format("cohesion: expected a finite number >= 0 (N), got {}", law.cohesion));
   }

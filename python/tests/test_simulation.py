@@ -94,7 +94,7 @@ def test_coulomb_sliding_decelerates_at_mu_g_and_friction_can_change_between_ste
     assert rubble.CONTACT_STATUS[int(sim.contacts()["status"][0])] == "sliding"
     assert sim.contact_law("glass", "glass") == {"friction": mu, "restitution": 0.0, "cohesion": 0.0,
                                                  "work_of_adhesion": 0.0, "rolling_friction": 0.0,
-                                                 "twisting_friction": 0.0}
+                                                 "twisting_friction": 0.0, "tangential_restitution": 0.0}
 
     sim.set_contact_law("glass", "glass", friction=0.0)  # frictionless from now on
     v1 = sim.velocities[0, 0]
