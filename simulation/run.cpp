@@ -108,20 +108,20 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
     }
   }
   const auto contact_body = [](const Contact& c) { return static_cast<std::size_t>(c.id.body_b); };
-  for (const Contact& c : workspace.contacts) {
+  for (const Contact& c : workspace.carry.contacts) {
     if (!c.point.allFinite() || !c.frame.allFinite() || !std::isfinite(c.gap)) {
       problem = {contact_body(c), fmt::format("contact with body {}: non-finite point, frame or gap", c.id.body_a)};
       return "narrow_phase";
     }
   }
-  for (const Contact& c : workspace.contacts) {
+  for (const Contact& c : workspace.carry.contacts) {
     if (!c.delassus.allFinite() || !std::isfinite(c.normal_velocity_target) || !std::isfinite(c.normal_velocity_before)) {
       problem = {contact_body(c), fmt::format("contact with body {}: non-finite Delassus block or target velocity",
                                               c.id.body_a)};
       return "solver_preparation";
     }
   }
-  for (const Contact& c : workspace.contacts) {
+  for (const Contact& c : workspace.carry.contacts) {
     if (!c.impulse.allFinite()) {
       problem = {contact_body(c), fmt::format("contact with body {}: non-finite impulse", c.id.body_a)};
       return "nlgs_sweeps";
@@ -310,10 +310,7 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
                                         model.body_count()));
     }
     state = from.state;
-    workspace.contacts = from.contacts;
-    workspace.detection_memory = from.detection_memory;
-    workspace.held_gravity = from.held_gravity;
-    workspace.held_gravity_step = from.held_gravity_step;
+    workspace.carry = from.carry;
     progress = from.progress;  // the snapshot period stays that of the first session
     last_checkpoint_step = state.step;
     // Resumed from an earlier checkpoint (--from-step, or newer ones damaged): the later ones
@@ -390,8 +387,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
   // Writes a snapshot of the current state to the run file and the VTK series.
   const auto write_snapshot = [&](bool interrupted) {
     output([&] {
-      file->write_snapshot(state, workspace.contacts, interrupted);
-      if (vtk) vtk->write(state, workspace.contacts);
+      file->write_snapshot(state, workspace.carry.contacts, interrupted);
+      if (vtk) vtk->write(state, workspace.carry.contacts);
     });
   };
   progress.end_step = progress.first_step + total_steps;
@@ -425,10 +422,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     // Saved from the run's own objects through a view and streamed to the file: no copy of the
     // state, contacts or detection memory, so a checkpoint adds ~1 MiB to the run's working set.
     const RestWatch saved_rest = save_rest_watch(rest);
-    const CheckpointView checkpoint{control.scene_text,         control.scene_source,   run.end_time,
-                                    run.seed,                   state,                  workspace.contacts,
-                                    workspace.detection_memory, progress,               saved_rest,
-                                    workspace.held_gravity,     workspace.held_gravity_step};
+    const CheckpointView checkpoint{control.scene_text, control.scene_source, run.end_time, run.seed,
+                                    state,              workspace.carry,      progress,     saved_rest};
     summary.last_checkpoint =
         write_checkpoint(checkpoints, checkpoint, control.checkpoints_kept, run.output.keep_checkpoint_every);
     last_checkpoint_step = state.step;
@@ -515,8 +510,8 @@ RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& 
     if (!report.solver.converged) ++progress.unconverged_steps;
     progress.wall_seconds += step_seconds;
     const std::int64_t done = state.step - progress.first_step;
-    const bool at_rest =
-        run.until_rest && grain_count > 0 && rest.update(rest_sample(model, state, workspace.contacts, run.rest.quantile));
+    const bool at_rest = run.until_rest && grain_count > 0 &&
+                         rest.update(rest_sample(model, state, workspace.carry.contacts, run.rest.quantile));
     const bool at_end = state.step == progress.end_step || at_rest;
     if (done % progress.snapshot_period == 0 || at_end) write_snapshot(false);
 
