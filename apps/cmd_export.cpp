@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include "apps/commands.hpp"
+#include "core/input_error.hpp"
 #include "postprocessing/run_reader.hpp"
 #include "simulation/branch.hpp"
 #include "simulation/scene_file.hpp"
@@ -76,10 +77,10 @@ int export_command(const ExportArguments& args) {
     text += scene_to_toml(scene);
     // The file must read back: parse it once before writing it.
     parse_scene(text, args.output == "-" ? "<rubble export>" : args.output);
-  } catch (const BranchError& e) {
-    return bad_input(e.what());
   } catch (const SceneError& e) {
     return bad_input(std::string("the run's scene: ") + e.what());
+  } catch (const InputError& e) {  // BranchError, InputFileError, ...
+    return bad_input(e.what());
   } catch (const std::runtime_error& e) {
     return bad_input(e.what());
   }

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "apps/commands.hpp"
+#include "core/input_error.hpp"
 #include "gravity/gravity.hpp"
 #include "simulation/memory_estimate.hpp"
 
@@ -44,8 +45,8 @@ struct GravityArguments {
 };
 
 /// Invalid input: reported on stderr, exit code 2.
-struct BadInput : std::runtime_error {
-  using std::runtime_error::runtime_error;
+struct BadInput : InputError {
+  using InputError::InputError;
 };
 
 using hdf5::Handle;
@@ -244,7 +245,7 @@ int gravity_command(const GravityArguments& args) {
                            {"input", in},
                            {"output", args.output}};
     std::cout << line.dump() << std::endl;
-  } catch (const BadInput& e) {
+  } catch (const InputError& e) {
     std::cerr << "rubble gravity: error: " << e.what() << "\n";
     return exit_bad_input;
   } catch (const NonFiniteField& e) {

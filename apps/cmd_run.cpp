@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "apps/commands.hpp"
+#include "core/input_error.hpp"
 #include "core/input_file.hpp"
 #include "simulation/branch.hpp"
 #include "simulation/checkpoint.hpp"
@@ -212,12 +213,12 @@ int run_command(const RunArguments& args) {
       // Absolute, so that a resumed run anchors the scene's relative paths the same way.
       control.scene_source = std::filesystem::absolute(args.scene_path).string();
     }
-  } catch (const SceneError& e) {
-    return bad_input(e.what());
-  } catch (const InputFileError& e) {
-    return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
+  } catch (const InputError& e) {  // InputFileError and every other input error (core/input_error.hpp)
+    return bad_input(e.what());
+  } catch (const SceneError& e) {  // a std::runtime_error of its own (simulation/scene_file.hpp)
+    return bad_input(e.what());
   }
   if (branching) {
     // The bodies' state from the saved run; everything else from the scene (docs/checkpoints.md,
@@ -325,13 +326,11 @@ int run_command(const RunArguments& args) {
   } catch (const OutputError& e) {
     std::cerr << "rubble run: output failure: " << e.what() << "\n";
     return exit_output_failure;
-  } catch (const OutputFolderBusy& e) {
-    return bad_input(e.what());
-  } catch (const OutputFolderError& e) {
-    return bad_input(e.what());
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
-  } catch (const std::invalid_argument& e) {
+  } catch (const InputError& e) {  // OutputFolderBusy, OutputFolderError, ...
+    return bad_input(e.what());
+  } catch (const std::invalid_argument& e) {  // run_scene's checks of the grains and the end time
     return bad_input(e.what());
   } catch (const std::runtime_error& e) {
     std::cerr << "rubble run: error: " << e.what() << "\n";

@@ -9,13 +9,15 @@
 #include <string>
 #include <utility>
 
+#include "core/input_error.hpp"
+
 namespace rubble {
 
 /// An input file that cannot be read: missing, a folder, a special file, larger than the cap,
 /// or an I/O error. what() names the file and the reason (without a "file:line:" prefix).
-struct InputFileError : std::runtime_error {
+struct InputFileError : InputError {
   /// Builds what() = "FILE: reason".
-  InputFileError(const std::string& file, std::string why) : std::runtime_error(file + ": " + why), reason(std::move(why)) {}
+  InputFileError(const std::string& file, std::string why) : InputError(file + ": " + why), reason(std::move(why)) {}
   std::string reason;  ///< what is wrong, without the file name
 };
 

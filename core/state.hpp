@@ -1,6 +1,15 @@
 #pragma once
-// The state: everything that changes during a run. A plain struct of arrays, indexed by body id
-// like the model; with the model it is all a checkpoint needs.
+// The state: the bodies' positions, orientations and velocities at one instant, and the time and
+// step. A plain struct of arrays, indexed by body id like the model (core/model.hpp, which does
+// not change during a run).
+//
+// The state alone does not restart a run bit for bit. A restart also needs what the last step
+// hands to the next (simulation/step_carry.hpp, StepCarry: last step's contacts with their
+// impulses for the warm start, the detection memory of polyhedron pairs, the held self-gravity
+// field) and the run loop's bookkeeping (simulation/checkpoint.hpp: RunProgress, RestWatch). A
+// checkpoint saves all of them with the scene text the model is rebuilt from. A run started from
+// a state alone (rubble run SCENE --from RUN_DIR:snapshot=K, a snapshot of the run file) starts
+// cold: no warm start, so it follows a slightly different path.
 #include <cstdint>
 #include <vector>
 

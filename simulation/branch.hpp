@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 
+#include "core/input_error.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 
@@ -18,8 +19,9 @@ namespace rubble {
 
 /// A saved state that cannot be used for a branch or an export (no such run, snapshot or time;
 /// damaged file; bodies that differ from the scene's). what() names the file and what differs.
-struct BranchError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// An input error (exit code 2).
+struct BranchError : InputError {
+  using InputError::InputError;
 };
 
 /// Which saved state of a run: `DIR` or `DIR:last` (the newest valid checkpoint, bit for bit; the

@@ -1,23 +1,27 @@
 #pragma once
 // Checkpoints: everything a run needs to go on from step K exactly as if it had never stopped
-// (docs/checkpoints.md). A checkpoint holds the scene text (the model is rebuilt from it), the
-// State, the StepWorkspace data carried between steps (last step's contacts with their impulses =
-// the warm start, the detection memory, and the held self-gravity field), and the run loop's own bookkeeping (end step,
-// snapshot cadence, rows and snapshots already in the run file, summary accumulators).
+// (docs/checkpoints.md). A checkpoint is the scene text (the model is rebuilt from it), the State
+// (core/state.hpp), the StepCarry (simulation/step_carry.hpp: last step's contacts with their
+// impulses = the warm start, the detection memory, the held self-gravity field), and the run
+// loop's own bookkeeping: RunProgress (end step, snapshot cadence, rows and snapshots already in
+// the run file, summary accumulators) and RestWatch (the at-rest watcher's memory).
 //
 // File format (one binary file per checkpoint, little-endian as written by x86-64/aarch64):
 //   "RUBBLECK" | u32 format version | u32 0 | u64 payload size P | P payload bytes | u64 CRC-64
 // where the CRC-64 (ECMA-182 polynomial, reflected, as in xz: check value of "123456789" is
 // 0x995DC9BBDF1939FA) covers every byte before it. A file whose size, magic, version or CRC does
 // not match is rejected with a CheckpointError, so a truncated or damaged checkpoint is never
-// loaded.
+// loaded. The payload's layout is in checkpoint_codec.hpp (put_payload) and docs/checkpoints.md.
 //
 // Files live in DIR/checkpoints/ as step-NNNNNNNNNNNN.ckpt (NNNN = state.step, 12 digits, so that
 // names sort by step). write_checkpoint streams the file from the run's own objects (a
 // CheckpointView: no copy of the state or contacts, a 1 MiB buffer and a running CRC; the payload
-// size in the header comes from a counting pass), writes it as a temporary file, fsyncs it, renames it into place
-// and fsyncs the folder (POSIX: the rename is atomic, so a reader sees the old set of files or the
-// new one, never half a file), then deletes all but the newest `keep` checkpoints.
+// size in the header comes from a counting pass), writes it as a temporary file, fsyncs it, renames
+// it into place and fsyncs the folder (POSIX: the rename is atomic, so a reader sees the old set of
+// files or the new one, never half a file), then deletes all but the newest `keep` checkpoints.
+//
+// Code: checkpoint_format.cpp (bytes: CRC, serialise, parse, state hash), checkpoint.cpp (files:
+// streamed atomic write, retention, listing, loading; the rest watcher's save and restore).
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -27,17 +31,17 @@
 #include <utility>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
-#include "contact_detection/detection.hpp"
+#include "core/input_error.hpp"
 #include "core/state.hpp"
 #include "simulation/run_control.hpp"
+#include "simulation/step_carry.hpp"
 
 namespace rubble {
 
 /// A checkpoint that cannot be used (missing, truncated, wrong format, checksum mismatch,
-/// inconsistent content). what() names the file.
-struct CheckpointError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// inconsistent content). what() names the file. An input error (exit code 2).
+struct CheckpointError : InputError {
+  using InputError::InputError;
 };
 
 /// The run loop's bookkeeping, saved so that a resumed run continues its outputs with no step
@@ -83,32 +87,24 @@ struct Checkpoint {
   /// generators are the scene's grain generators, which run once when the scene is parsed), so
   /// the seed is the whole random-generator state; it is saved to rebuild the same grains.
   std::uint64_t seed = 1;
-  State state;                       ///< positions, orientations, velocities, time, step
-  ContactList contacts;              ///< last step's contacts with every field (warm start)
-  DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
-  RunProgress progress;              ///< run-loop bookkeeping
-  RestWatch rest;                    ///< the at-rest watcher's memory (until = "rest")
-  /// Held self-gravity field (StepWorkspace::held_gravity, [gravity] evaluate_every > 1), so a
-  /// resumed run reuses the same field for the same steps; empty otherwise.
-  std::vector<Vec3> held_gravity;
-  std::int64_t held_gravity_step = -1;  ///< state.step at which held_gravity was evaluated (-1: none)
+  State state;          ///< positions, orientations, velocities, time, step
+  StepCarry carry;      ///< what the last step hands to the next (warm start, detection memory, held gravity)
+  RunProgress progress; ///< run-loop bookkeeping
+  RestWatch rest;       ///< the at-rest watcher's memory (until = "rest")
 };
 
 /// A checkpoint's content by reference: what write_checkpoint saves, taken straight from the run
 /// loop's objects so that writing a checkpoint copies neither the State nor the contacts. Field
 /// by field the same as Checkpoint (see there); the referenced objects must outlive the view.
 struct CheckpointView {
-  const std::string& scene_text;               ///< Checkpoint::scene_text
-  const std::string& scene_source;             ///< Checkpoint::scene_source
-  double end_time;                             ///< s, Checkpoint::end_time
-  std::uint64_t seed;                          ///< Checkpoint::seed
-  const State& state;                          ///< Checkpoint::state
-  const ContactList& contacts;                 ///< Checkpoint::contacts
-  const DetectionMemory& detection_memory;     ///< Checkpoint::detection_memory (pairs and normals only)
-  const RunProgress& progress;                 ///< Checkpoint::progress
-  const RestWatch& rest;                       ///< Checkpoint::rest
-  const std::vector<Vec3>& held_gravity;       ///< Checkpoint::held_gravity
-  std::int64_t held_gravity_step;              ///< Checkpoint::held_gravity_step
+  const std::string& scene_text;    ///< Checkpoint::scene_text
+  const std::string& scene_source;  ///< Checkpoint::scene_source
+  double end_time;                  ///< s, Checkpoint::end_time
+  std::uint64_t seed;               ///< Checkpoint::seed
+  const State& state;               ///< Checkpoint::state
+  const StepCarry& carry;           ///< Checkpoint::carry (the detection memory's pairs and normals only)
+  const RunProgress& progress;      ///< Checkpoint::progress
+  const RestWatch& rest;            ///< Checkpoint::rest
 };
 
 /// A view of every field of `checkpoint`.

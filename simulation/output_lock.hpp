@@ -15,18 +15,21 @@
 #include <stdexcept>
 #include <sys/types.h>
 
+#include "core/input_error.hpp"
+
 namespace rubble {
 
 /// The output folder is held by another live process. what() names the folder, the lock file
-/// and the owner's pid when it is known.
-struct OutputFolderBusy : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// and the owner's pid when it is known. An input error (exit code 2): the folder given is taken.
+struct OutputFolderBusy : InputError {
+  using InputError::InputError;
 };
 
 /// The output folder cannot be created or its lock file cannot be opened (a file in the way,
-/// no permission, read-only file system). what() names the path and the system's reason.
-struct OutputFolderError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// no permission, read-only file system). what() names the path and the system's reason. An input
+/// error (exit code 2): it happens before anything is written, on the folder the user named.
+struct OutputFolderError : InputError {
+  using InputError::InputError;
 };
 
 /// Name of the lock file inside an output folder.

@@ -96,8 +96,8 @@ std::optional<double> compute_external_forces(const Model& model, const State& s
     case GravitySettings::Kind::self: {
       if (gravity.evaluate_every <= 1) {
         // Every step: no field is held (and a checkpoint carries none).
-        workspace.held_gravity.clear();
-        workspace.held_gravity_step = -1;
+        workspace.carry.held_gravity.clear();
+        workspace.carry.held_gravity_step = -1;
         std::vector<Vec3> acceleration;
         potential = self_gravity_accelerations(model, state, gravity.self_gravity, acceleration);
         for (std::size_t b = 0; b < model.body_count(); ++b) {
@@ -105,16 +105,17 @@ std::optional<double> compute_external_forces(const Model& model, const State& s
         }
         return potential;
       }
-      const bool stale = workspace.held_gravity.size() != model.body_count() || workspace.held_gravity_step < 0 ||
-                         state.step < workspace.held_gravity_step ||
-                         state.step - workspace.held_gravity_step >= gravity.evaluate_every;
+      StepCarry& carry = workspace.carry;
+      const bool stale = carry.held_gravity.size() != model.body_count() || carry.held_gravity_step < 0 ||
+                         state.step < carry.held_gravity_step ||
+                         state.step - carry.held_gravity_step >= gravity.evaluate_every;
       std::optional<double> evaluated;
       if (stale) {
-        evaluated = self_gravity_accelerations(model, state, gravity.self_gravity, workspace.held_gravity);
-        workspace.held_gravity_step = state.step;
+        evaluated = self_gravity_accelerations(model, state, gravity.self_gravity, carry.held_gravity);
+        carry.held_gravity_step = state.step;
       }
       for (std::size_t b = 0; b < model.body_count(); ++b) {
-        if (!model.is_fixed(b)) force[b] = model.mass[b] * workspace.held_gravity[b];
+        if (!model.is_fixed(b)) force[b] = model.mass[b] * carry.held_gravity[b];
       }
       return evaluated;
     }
@@ -182,13 +183,13 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   // (40 of 304 bytes a point): keep those and free the list before this step's is built, so that
   // the two full lists are never alive together (at 1e5 spheres that was the run's peak memory).
   std::vector<CarriedImpulse> carried;
-  if (options.solver.warm_start) carried = impulses_to_carry(workspace.contacts);
-  ContactList().swap(workspace.contacts);
+  if (options.solver.warm_start) carried = impulses_to_carry(workspace.carry.contacts);
+  ContactList().swap(workspace.carry.contacts);
   timer.finish(Stage::store_impulses);
 
   // 5. detect at q_m: broad phase, narrow phase -> contact points, frames, gaps.
   DetectionStats detection;
-  ContactList contacts = detect_contacts(model, state, options.detection, workspace.detection_memory, &detection);
+  ContactList contacts = detect_contacts(model, state, options.detection, workspace.carry.detection_memory, &detection);
   report.stage_seconds[static_cast<std::size_t>(Stage::broad_phase)] += detection.broad_phase_seconds;
   report.stage_seconds[static_cast<std::size_t>(Stage::narrow_phase)] += detection.narrow_phase_seconds;
   report.contacts = contacts.size();
@@ -197,18 +198,18 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   // 6. match_contacts: last step's impulses warm-start the persistent contacts.
   if (options.solver.warm_start) carry_impulses(carried, contacts);
   std::vector<CarriedImpulse>().swap(carried);
-  workspace.contacts = std::move(contacts);
+  workspace.carry.contacts = std::move(contacts);
   timer.finish(Stage::match_contacts);
 
   // 7. solve: Delassus blocks and targets, then NLGS sweeps; the velocity update
   // v_{n+1} = v_free + M^-1 H r happens inside the sweeps, contact by contact.
-  prepare_contacts(model, state, workspace.velocity, integrator, options.solver, workspace.contacts);
+  prepare_contacts(model, state, workspace.velocity, integrator, options.solver, workspace.carry.contacts);
   timer.finish(Stage::solver_preparation);
-  report.solver = solve_contacts(model, state, options.solver, workspace.contacts, workspace.velocity);
+  report.solver = solve_contacts(model, state, options.solver, workspace.carry.contacts, workspace.velocity);
   timer.finish(Stage::nlgs_sweeps);
 
   // 8. overlap_recovery: displacements (not velocities) that remove overlap left beyond the allowed depth.
-  report.overlap = recover_overlaps(model, state, workspace.contacts, workspace.velocity, integrator,
+  report.overlap = recover_overlaps(model, state, workspace.carry.contacts, workspace.velocity, integrator,
                                     options.solver.overlap_recovery, workspace.displacement_velocity);
   timer.finish(Stage::overlap_recovery);
 

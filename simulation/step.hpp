@@ -12,6 +12,7 @@
 #include "core/units.hpp"
 #include "gravity/gravity.hpp"
 #include "nlgs_solver/nlgs.hpp"
+#include "simulation/step_carry.hpp"
 
 namespace rubble {
 
@@ -38,7 +39,7 @@ struct GravitySettings {
   gravity::GravityOptions self_gravity{};          ///< for Kind::self (direct or tree, G, theta, order)
   CentralField central{};                          ///< for Kind::central
   /// For Kind::self: the field is evaluated every `evaluate_every` steps and held in between
-  /// (StepWorkspace::held_gravity); 1 = every step, the exact scheme.
+  /// (StepCarry::held_gravity); 1 = every step, the exact scheme.
   int evaluate_every = 1;
 };
 
@@ -76,19 +77,14 @@ struct StepReport {
   std::array<double, static_cast<std::size_t>(Stage::count)> stage_seconds{};  ///< wall time per stage
 };
 
-/// Data carried from one step to the next besides the state: last step's contacts (warm start)
-/// and the detection memory. A checkpoint saves it with the state.
+/// What step() works with besides the model and the state: the data carried to the next step
+/// (StepCarry, saved by a checkpoint) and the step's scratch arrays, rebuilt every step (kept here
+/// only so that their memory is reused).
 struct StepWorkspace {
-  ContactList contacts;              ///< this step's contacts, last step's on entry
-  DetectionMemory detection_memory;  ///< common-plane normals of persistent pairs
-  std::vector<Vec3> force;           ///< scratch: external force per body
-  BodyVelocities velocity;           ///< scratch: free, then end-of-step velocities
+  StepCarry carry;                       ///< last step's contacts on entry, this step's on return
+  std::vector<Vec3> force;               ///< scratch: external force per body
+  BodyVelocities velocity;               ///< scratch: free, then end-of-step velocities
   BodyVelocities displacement_velocity;  ///< scratch: the overlap recovery's pseudo-velocities (often empty)
-  /// Self-gravity acceleration per body (m/s^2; zero for walls) as last evaluated, reused until
-  /// GravitySettings::evaluate_every steps have passed. Empty when evaluate_every = 1.
-  std::vector<Vec3> held_gravity;
-  /// state.step at which held_gravity was evaluated (-1: never).
-  std::int64_t held_gravity_step = -1;
 };
 
 /// Advances `state` by one step of the Moreau-Jean theta-method in Moreau's midpoint form

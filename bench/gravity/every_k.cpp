@@ -4,7 +4,7 @@
 //   every_k SCENE.toml --steps N --k 1,2,4,8,16 --csv OUT.csv
 // For each k, runs N steps of the scene with evaluate_every = k; before every step evaluates the
 // field exactly as k = 1 would (same method, theta, order, G, softening) at the current positions,
-// and after the step compares it with the acceleration the step used (workspace.held_gravity, or
+// and after the step compares it with the acceleration the step used (workspace.carry.held_gravity, or
 // the exact one for k = 1). Per step: max and median over grains of |a_used - a_exact| / |a_exact|.
 // The gravity stage's wall time is StepReport::stage_seconds[external_forces], the figure the run
 // file stores per step (docs/output-format.md); the exact reference evaluation is outside step()
@@ -94,7 +94,7 @@ int main(int argc, char** argv) {
       std::vector<double> errors;
       for (std::size_t b = 0; b < exact.size(); ++b) {
         if (scene.model.is_fixed(b) || exact[b].norm() == 0.0) continue;
-        const Vec3 used = k == 1 ? exact[b] : workspace.held_gravity[b];
+        const Vec3 used = k == 1 ? exact[b] : workspace.carry.held_gravity[b];
         errors.push_back((used - exact[b]).norm() / exact[b].norm());
       }
       std::sort(errors.begin(), errors.end());

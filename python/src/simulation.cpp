@@ -63,10 +63,7 @@ Simulation Simulation::from_checkpoint(const Checkpoint& checkpoint) {
   scene.run.end_time = checkpoint.end_time;
   Simulation simulation(std::move(scene), checkpoint.scene_text, checkpoint.scene_source);
   simulation.state_ = checkpoint.state;
-  simulation.workspace_.contacts = checkpoint.contacts;
-  simulation.workspace_.detection_memory = checkpoint.detection_memory;
-  simulation.workspace_.held_gravity = checkpoint.held_gravity;
-  simulation.workspace_.held_gravity_step = checkpoint.held_gravity_step;
+  simulation.workspace_.carry = checkpoint.carry;
   simulation.progress_ = checkpoint.progress;
   restore_rest_watch(checkpoint.rest, simulation.rest_);
   return simulation;
@@ -129,7 +126,7 @@ const StepReport& Simulation::advance() {
 
   if (!record_ && !watch_rest_) return last_report_;
   if (watch_rest_ && grain_count_ > 0) {
-    at_rest_ = rest_.update(rest_sample(scene_.model, state_, workspace_.contacts, scene_.run.rest.quantile)) || at_rest_;
+    at_rest_ = rest_.update(rest_sample(scene_.model, state_, workspace_.carry.contacts, scene_.run.rest.quantile)) || at_rest_;
   }
   if (record_) {
     const SeriesRow row = series_row(scene_.model, state_, last_report_, scene_.run.step.gravity, step_seconds, potential_energy_);
@@ -176,8 +173,8 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
 
 void Simulation::write_snapshot() {
   if (!record_ || last_snapshot_step_ == state_.step) return;
-  record_->write_snapshot(state_, workspace_.contacts);
-  if (record_vtk_) record_vtk_->write(state_, workspace_.contacts);
+  record_->write_snapshot(state_, workspace_.carry.contacts);
+  if (record_vtk_) record_vtk_->write(state_, workspace_.carry.contacts);
   last_snapshot_step_ = state_.step;
 }
 
@@ -225,17 +222,8 @@ std::filesystem::path Simulation::save_checkpoint(const std::filesystem::path& f
     std::swap(scene_.state, state_);
   }
   const RestWatch rest = save_rest_watch(rest_);
-  const CheckpointView view{text,
-                            scene_source_,
-                            scene_.run.end_time,
-                            scene_.run.seed,
-                            state_,
-                            workspace_.contacts,
-                            workspace_.detection_memory,
-                            progress_,
-                            rest,
-                            workspace_.held_gravity,
-                            workspace_.held_gravity_step};
+  const CheckpointView view{text,   scene_source_,    scene_.run.end_time, scene_.run.seed,
+                            state_, workspace_.carry, progress_,           rest};
   return write_checkpoint(folder, view, keep);
 }
 
@@ -320,7 +308,7 @@ PotentialSettings Simulation::potential_settings() const {
 
 AggregateMetrics Simulation::metrics(const ContactMetricsOptions& options) const {
   if (!grain_sizes_) grain_sizes_ = grain_sizes(scene_.model);
-  return compute_metrics(scene_.model, *grain_sizes_, state_, workspace_.contacts, potential_settings(), options);
+  return compute_metrics(scene_.model, *grain_sizes_, state_, workspace_.carry.contacts, potential_settings(), options);
 }
 
 }  // namespace rubble::python

@@ -100,7 +100,7 @@ class Simulation {
   /// The state (read only).
   const State& state() const { return state_; }
   /// The contacts of the last step (impulses, status).
-  const ContactList& contacts() const { return workspace_.contacts; }
+  const ContactList& contacts() const { return workspace_.carry.contacts; }
   /// The last step's report (zero before the first step).
   const StepReport& last_report() const { return last_report_; }
   /// Wall time per stage summed over the steps taken by this object, s.

@@ -341,16 +341,16 @@ TEST(Restart, HeldSelfGravityFieldSurvivesTheCheckpoint) {
   run_scene(scene, checkpointed);
   const fs::path at_40 = checkpoint_folder(scene.run.output.directory) / "step-000000000040.ckpt";
   const Checkpoint checkpoint = read_checkpoint(at_40);
-  EXPECT_EQ(checkpoint.held_gravity_step, 39);
-  ASSERT_EQ(checkpoint.held_gravity.size(), checkpoint.state.body_count());
+  EXPECT_EQ(checkpoint.carry.held_gravity_step, 39);
+  ASSERT_EQ(checkpoint.carry.held_gravity.size(), checkpoint.state.body_count());
 
   RunControl resume = checkpointed;
   resume.resume = &checkpoint;
   EXPECT_EQ(run_scene(scene, resume).state_hash, reference.state_hash);
 
   Checkpoint without_field = checkpoint;
-  without_field.held_gravity.clear();
-  without_field.held_gravity_step = -1;
+  without_field.carry.held_gravity.clear();
+  without_field.carry.held_gravity_step = -1;
   resume.resume = &without_field;
   EXPECT_NE(run_scene(scene, resume).state_hash, reference.state_hash);
 }

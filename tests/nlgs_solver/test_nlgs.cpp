@@ -48,13 +48,13 @@ TEST(Nlgs, FloorCarriesTheWholeWeightOfAStaticPile) {
   double floor_impulse = 0.0;
   double weight = 0.0;
   for (std::size_t b = 1; b < s.model.body_count(); ++b) weight += s.model.mass[b] * 9.81;
-  for (const Contact& c : s.workspace.contacts) {
+  for (const Contact& c : s.workspace.carry.contacts) {
     if (c.id.body_a == 0 || c.id.body_b == 0) floor_impulse += (c.frame * c.impulse).z();
   }
   // Momentum balance over one step with the pile at rest: floor impulse = total weight * h.
   EXPECT_NEAR(floor_impulse, weight * s.options.integrator.time_step, 1e-7 * weight * s.options.integrator.time_step);
   // And every contact honours Coulomb's cone.
-  for (const Contact& c : s.workspace.contacts) {
+  for (const Contact& c : s.workspace.carry.contacts) {
     EXPECT_LE(std::hypot(c.impulse.y(), c.impulse.z()), c.friction_coefficient * c.impulse.x() * (1 + 1e-12));
   }
 }
@@ -121,7 +121,7 @@ TEST(SweepPlan, GroupsOfOnePhaseShareNoMovingBodyAndTheOrderIsAPermutation) {
   TestScene s = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
   s.options.solver.max_iterations = 5;  // only the contacts matter here
   s.steps(2);
-  const ContactList& contacts = s.workspace.contacts;
+  const ContactList& contacts = s.workspace.carry.contacts;
   ASSERT_GT(contacts.size(), 3000u);
   for (const int blocks : {1, 2, 5, 16, 64}) {
     const SweepPlan plan = plan_sweep(s.model, s.state, contacts, blocks);
@@ -228,7 +228,7 @@ TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
   TestScene s = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
   s.steps(2);
   // This step's problem: the contacts at the current state, prepared from a free velocity.
-  ContactList prepared = s.workspace.contacts;
+  ContactList prepared = s.workspace.carry.contacts;
   const double h = s.options.integrator.time_step;
   BodyVelocities free{s.state.velocity, s.state.angular_velocity};
   for (std::size_t b = 0; b < s.model.body_count(); ++b) {
@@ -312,7 +312,7 @@ TEST(SweepPlan, BlockedSweepsConvergeOnColumnsAtRest) {
                                                   << s.last_report.solver.residual;
       double floor_impulse = 0.0, weight = 0.0;
       for (std::size_t b = 1; b < s.model.body_count(); ++b) weight += s.model.mass[b] * 9.81;
-      for (const Contact& c : s.workspace.contacts) {
+      for (const Contact& c : s.workspace.carry.contacts) {
         if (c.id.body_a == 0 || c.id.body_b == 0) floor_impulse += (c.frame * c.impulse).z();
       }
       const double expected = weight * s.options.integrator.time_step;

@@ -134,15 +134,15 @@ TEST(PolyhedraDynamics, TetrahedronEdgeOnEdge) {
   double deepest = 0.0;
   for (int k = 0; k < 1500; ++k) {
     s.advance();
-    for (const Contact& c : s.workspace.contacts) {
+    for (const Contact& c : s.workspace.carry.contacts) {
       deepest = std::max(deepest, -c.gap);
     }
-    if (first && !s.workspace.contacts.empty()) {
+    if (first && !s.workspace.carry.contacts.empty()) {
       first = false;
-      ASSERT_EQ(s.workspace.contacts.size(), 1u);
-      EXPECT_EQ(s.workspace.contacts[0].id.feature_a >> 30, 1u);  // edge
-      EXPECT_EQ(s.workspace.contacts[0].id.feature_b >> 30, 1u);  // edge
-      EXPECT_NEAR((s.workspace.contacts[0].frame.col(0) - Vec3::UnitZ()).norm(), 0.0, 1e-6);
+      ASSERT_EQ(s.workspace.carry.contacts.size(), 1u);
+      EXPECT_EQ(s.workspace.carry.contacts[0].id.feature_a >> 30, 1u);  // edge
+      EXPECT_EQ(s.workspace.carry.contacts[0].id.feature_b >> 30, 1u);  // edge
+      EXPECT_NEAR((s.workspace.carry.contacts[0].frame.col(0) - Vec3::UnitZ()).norm(), 0.0, 1e-6);
     }
   }
   EXPECT_FALSE(first);
@@ -178,7 +178,7 @@ PourResult pour(long steps, double time_step) {
   };
   for (long k = 0; k < steps; ++k) {
     s.advance();
-    for (const Contact& c : s.workspace.contacts) {
+    for (const Contact& c : s.workspace.carry.contacts) {
       if (s.model.is_grain(c.id.body_a) && s.model.is_grain(c.id.body_b)) result.deepest = std::max(result.deepest, -c.gap);
     }
     result.last = kinetic_energy();

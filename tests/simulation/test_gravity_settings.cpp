@@ -149,8 +149,8 @@ TEST(EvaluateEvery, OneIsTheDefaultBitForBit) {
   reference.options.gravity.kind = GravitySettings::Kind::self;
   reference.options.gravity.self_gravity.method = gravity::Method::direct;
   TestScene every_one = small_cloud(1);
-  every_one.workspace.held_gravity.assign(every_one.model.body_count(), Vec3(1, 2, 3));
-  every_one.workspace.held_gravity_step = 0;
+  every_one.workspace.carry.held_gravity.assign(every_one.model.body_count(), Vec3(1, 2, 3));
+  every_one.workspace.carry.held_gravity_step = 0;
   int contacts = 0;
   for (int n = 0; n < 600; ++n) {
     reference.advance();
@@ -159,7 +159,7 @@ TEST(EvaluateEvery, OneIsTheDefaultBitForBit) {
   }
   EXPECT_GT(contacts, 10) << "the cloud must collapse into contact to test more than free fall";
   EXPECT_EQ(state_hash(every_one.state), state_hash(reference.state));
-  EXPECT_TRUE(every_one.workspace.held_gravity.empty());
+  EXPECT_TRUE(every_one.workspace.carry.held_gravity.empty());
 }
 
 // k = 4: the field used is evaluated at the midpoints of steps 0, 4, 8, ... (equal there to an independent direct
@@ -174,17 +174,17 @@ TEST(EvaluateEvery, HoldsTheFieldBetweenEvaluationsAndMatchesADirectSumAtThem) {
     const std::int64_t step = s.state.step;
     const std::vector<Vec3> exact = direct_field(s);
     s.advance();
-    ASSERT_EQ(s.workspace.held_gravity.size(), s.model.body_count());
+    ASSERT_EQ(s.workspace.carry.held_gravity.size(), s.model.body_count());
     if (step % k == 0) {
       ++evaluations;
-      EXPECT_EQ(s.workspace.held_gravity_step, step);
+      EXPECT_EQ(s.workspace.carry.held_gravity_step, step);
       for (std::size_t b = 0; b < exact.size(); ++b) {
-        EXPECT_NEAR((s.workspace.held_gravity[b] - exact[b]).norm(), 0.0, 1e-12 * exact[b].norm()) << "body " << b;
+        EXPECT_NEAR((s.workspace.carry.held_gravity[b] - exact[b]).norm(), 0.0, 1e-12 * exact[b].norm()) << "body " << b;
       }
-      held = s.workspace.held_gravity;
+      held = s.workspace.carry.held_gravity;
     } else {
-      EXPECT_EQ(s.workspace.held_gravity_step, step - step % k);
-      EXPECT_EQ(s.workspace.held_gravity, held) << "step " << step;
+      EXPECT_EQ(s.workspace.carry.held_gravity_step, step - step % k);
+      EXPECT_EQ(s.workspace.carry.held_gravity, held) << "step " << step;
     }
     // The force applied is m times the held acceleration.
     for (std::size_t b = 0; b < s.model.body_count(); ++b) {

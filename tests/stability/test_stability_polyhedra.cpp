@@ -58,14 +58,14 @@ double max_grain_speed(const TestScene& s) {
 /// Deepest overlap (-gap, >= 0) among this step's contacts, walls included.
 double deepest_overlap(const TestScene& s) {
   double d = 0.0;
-  for (const Contact& c : s.workspace.contacts) d = std::max(d, -c.gap);
+  for (const Contact& c : s.workspace.carry.contacts) d = std::max(d, -c.gap);
   return d;
 }
 
 /// Sum of this step's normal impulses on body `wall` (N s).
 double normal_impulse_on(const TestScene& s, int wall) {
   double r = 0.0;
-  for (const Contact& c : s.workspace.contacts)
+  for (const Contact& c : s.workspace.carry.contacts)
     if (c.id.body_a == static_cast<std::uint32_t>(wall) || c.id.body_b == static_cast<std::uint32_t>(wall)) r += c.impulse.x();
   return r;
 }
@@ -360,7 +360,7 @@ double kinetic_energy(const TestScene& s) {
 /// Deepest grain-grain overlap among this step's contacts (m, >= 0).
 double deepest_grain_overlap(const TestScene& s) {
   double d = 0.0;
-  for (const Contact& c : s.workspace.contacts)
+  for (const Contact& c : s.workspace.carry.contacts)
     if (s.model.is_grain(c.id.body_a) && s.model.is_grain(c.id.body_b)) d = std::max(d, -c.gap);
   return d;
 }
@@ -417,7 +417,7 @@ ColdSolve solve_cold(const TestScene& scene, double tolerance) {
   s.advance();
   ColdSolve solve;
   solve.resultant.assign(s.model.body_count(), Vec3::Zero());
-  for (const Contact& c : s.workspace.contacts) {
+  for (const Contact& c : s.workspace.carry.contacts) {
     if (c.impulse.x() > 0.0) solve.loaded_pairs[{c.id.body_a, c.id.body_b}] += c.impulse.x();
     const Vec3 impulse = c.frame * c.impulse;  // on body b, world frame
     solve.resultant[c.id.body_b] += impulse;

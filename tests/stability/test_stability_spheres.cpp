@@ -140,7 +140,7 @@ TEST(Stability, OverlapRecoveryWithoutEjection) {
     for (const int b : balls) max_speed = std::max(max_speed, s.state.velocity[static_cast<std::size_t>(b)].norm());
   }
   double worst_gap = 0.0;
-  for (const Contact& c : s.workspace.contacts) worst_gap = std::min(worst_gap, c.gap);
+  for (const Contact& c : s.workspace.carry.contacts) worst_gap = std::min(worst_gap, c.gap);
   EXPECT_GT(worst_gap, -0.01 * r);          // separated to within 1% of r
   EXPECT_LT(max_speed, 1.0 + g * 0.5);      // the cap, plus gravity over the recovery
 }
