@@ -21,11 +21,6 @@ struct Material {
 struct ContactLaw {
   double friction_coefficient = 0.0;  ///< Coulomb's mu >= 0
   double normal_restitution = 0.0;    ///< Newton's e_n in [0, 1]
-  /// Tangential restitution e_t in [0, 1]: Coulomb's law holds for the weighted tangential
-  /// velocity u_t+ + e_t u_t- (Moreau 1988; Fremond 2002), so a sticking impact reverses the
-  /// contact point's sliding velocity times e_t (a superball), and e_t = 0 is plain Coulomb
-  /// (nlgs_solver/README.md, "Tangential restitution").
-  double tangential_restitution = 0.0;
   /// Cohesion: the pull-off force of a pair of bodies in contact, N (>= 0). A cohesive contact may
   /// pull up to this force before it opens, and Coulomb's cone acts on the normal force including
   /// it (the cone shifted by the cohesive impulse; nlgs_solver/README.md, "Cohesion").
@@ -43,6 +38,12 @@ struct ContactLaw {
   /// Twisting resistance mu_t >= 0: the relative spin about the normal is resisted by an angular
   /// impulse of at most mu_t r_eff r_n. Sphere contacts only.
   double twisting_friction = 0.0;
+  /// Tangential restitution e_t in [0, 1] (last, so that positional initialisers of the members
+  /// above keep their meaning): Coulomb's law holds for the weighted tangential
+  /// velocity u_t+ + e_t u_t- (Moreau 1988; Fremond 2002), so a sticking impact reverses the
+  /// contact point's sliding velocity times e_t (a superball), and e_t = 0 is plain Coulomb
+  /// (nlgs_solver/README.md, "Tangential restitution").
+  double tangential_restitution = 0.0;
   /// Whether the law has any cohesion.
   bool cohesive() const { return cohesion > 0.0 || work_of_adhesion > 0.0; }
   /// Whether the law resists rolling or twisting.
