@@ -2,40 +2,51 @@
 // case (the LMGC90 accretion paper, docs/postprocessing.md "References"), with spheres or with
 // random polyhedra. examples/accretion-1000.toml and examples/accretion-1000-polyhedra.toml
 // hold the same texts (tests/scene/ keeps them equal).
-#include <string>
+#include <stdexcept>
+#include <string_view>
 
 #include "simulation/scene_file.hpp"
 
 namespace rubble {
 
-std::string default_scene_toml(DefaultScene variant) {
-  if (variant == DefaultScene::polyhedra) {
-    // The same accretion with the paper's random polyhedra (10-70 vertices, elongation and
-    // platyness in [0.5, 1], circumscribed diameter 7.5-10 m): about 90 s of CPU to rest.
-    std::string text = default_scene_toml(DefaultScene::spheres);
-    auto replace = [&text](const std::string& from, const std::string& to) {
-      const auto at = text.find(from);
-      if (at != std::string::npos) text.replace(at, from.size(), to);
-    };
-    replace("the built-in default scene (`rubble run` without a scene file).",
-            "the built-in default scene's polyhedra variant (`rubble run --default-scene polyhedra`).");
-    replace("# The accretion study (the LMGC90 accretion paper): 10^3 spheres of diameter 7.5-10 m,",
-            "# The accretion study (the LMGC90 accretion paper): 10^3 random convex polyhedra (CGAL hulls of 10-70 points on a\n"
-            "# sphere, elongation and platyness in [0.5, 1]) of circumscribed diameter 7.5-10 m,");
-    replace("name = \"accretion-1000\"", "name = \"accretion-1000-polyhedra\"");
-    replace("directory = \"accretion-1000-output\"", "directory = \"accretion-1000-polyhedra-output\"");
-    replace("type = \"cubic_grid\"\n", "type = \"cubic_grid\"\nshape = \"polyhedron\"\n");
-    return text;
-  }
-  // The accretion study's smallest classic case (the LMGC90 accretion paper) run
-  // to rest: about 3000 steps, a minute or two of CPU on 2 cores (examples/README.md). The number
-  // of grains (cells_per_side^3) and the rest criterion are the knobs that set the run time.
-  return R"(# rubble scene file: the built-in default scene (`rubble run` without a scene file).
-# The accretion study (the LMGC90 accretion paper): 10^3 spheres of diameter 7.5-10 m, uniform in volume fraction,
+namespace {
+
+/// What differs between the two built-in scenes. Both texts are composed from these pieces and
+/// one template, rather than one derived from the other by search and replace, which would go on
+/// silently (and make the wrong scene) once the text it searches for is edited.
+struct AccretionVariant {
+  std::string_view title;   ///< what the first comment line calls the scene
+  std::string_view grains;  ///< the grains as the second comment line describes them
+  std::string_view name;    ///< the scene's name, also the stem of its output folder
+  std::string_view shape;   ///< the generator's shape line ("" for the default, spheres)
+};
+
+constexpr AccretionVariant spheres_variant{
+    "the built-in default scene (`rubble run` without a scene file).", "10^3 spheres of diameter", "accretion-1000", ""};
+
+// The paper's random polyhedra (10-70 vertices, elongation and platyness in [0.5, 1],
+// circumscribed diameter 7.5-10 m): about 90 s of CPU to rest.
+constexpr AccretionVariant polyhedra_variant{
+    "the built-in default scene's polyhedra variant (`rubble run --default-scene polyhedra`).",
+    "10^3 random convex polyhedra (CGAL hulls of 10-70 points on a\n"
+    "# sphere, elongation and platyness in [0.5, 1]) of circumscribed diameter",
+    "accretion-1000-polyhedra", "shape = \"polyhedron\"\n"};
+
+/// The accretion study's smallest classic case run to rest: about 3000 steps, a minute or two
+/// of CPU on 2 cores for the spheres (examples/README.md). The number of grains
+/// (cells_per_side^3) and the rest criterion are the knobs that set the run time.
+std::string accretion_scene_text(const AccretionVariant& variant) {
+  std::string text = "# rubble scene file: ";
+  text.append(variant.title);
+  text += "\n# The accretion study (the LMGC90 accretion paper): ";
+  text.append(variant.grains);
+  text += R"( 7.5-10 m, uniform in volume fraction,
 # one per cell of a cubic grid of mesh d_max = 10 m, at rest, collapse under their own gravity
 # (Barnes-Hut tree) into a rubble pile; no friction, no restitution. The run stops when the
 # grains are at rest. Reference: docs/scene-file.md. SI units throughout.
-name = "accretion-1000"
+name = ")";
+  text.append(variant.name);
+  text += R"("
 seed = 1
 
 [time]
@@ -52,7 +63,9 @@ theta = 0.5
 order = 2
 
 [output]
-directory = "accretion-1000-output"
+directory = ")";
+  text.append(variant.name);
+  text += R"(-output"
 snapshot_interval = 60.0   # s of simulated time between snapshots
 progress_interval = 5.0    # s of wall time between progress lines
 
@@ -67,11 +80,24 @@ restitution = 0.0
 
 [[generators]]
 type = "cubic_grid"
-cells_per_side = 10
+)";
+  text.append(variant.shape);
+  text += R"(cells_per_side = 10
 radius_min = 3.75
 radius_max = 5.0
 distribution = "uniform_volume_fraction"
 )";
+  return text;
+}
+
+}  // namespace
+
+std::string default_scene_toml(DefaultScene variant) {
+  switch (variant) {
+    case DefaultScene::spheres: return accretion_scene_text(spheres_variant);
+    case DefaultScene::polyhedra: return accretion_scene_text(polyhedra_variant);
+  }
+  throw std::invalid_argument("default_scene_toml: unknown DefaultScene value");
 }
 
 Scene default_scene(DefaultScene variant) { return parse_scene(default_scene_toml(variant), "<default scene>"); }
