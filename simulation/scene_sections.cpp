@@ -1,10 +1,11 @@
 // The scene file's settings sections: [time], [solver], [detection], [gravity] and [output]
-// (docs/scene-file.md).
+// (docs/scene-file.md). [solver] and [detection] are read from their key tables (scene_keys.hpp).
 #include <limits>
 #include <stdexcept>
 
 #include "core/units.hpp"
 #include "simulation/run_control.hpp"
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_parser.hpp"
 
 namespace rubble::scene_detail {
@@ -139,41 +140,15 @@ void finish_time(SceneDraft& draft) {
 void parse_solver(SceneDraft& draft) {
   const auto solver = draft.root.optional_table("solver");
   if (!solver) return;
-  solver->allow_only({"tolerance", "max_iterations", "relaxation", "warm_start", "penetration_correction",
-                      "max_correction_velocity", "allowed_overlap", "polish_after", "polish_iterations", "polish_max_contacts",
-                      "polish_attempts_per_step", "block_count"},
-                     "in [solver]");
-  auto& options = draft.scene.run.step.solver;
-  options.tolerance = solver->number_or("tolerance", options.tolerance, positive());
-  options.max_iterations =
-      static_cast<int>(solver->integer_or("max_iterations", options.max_iterations, 1, 100'000'000));
-  options.relaxation = solver->number_or("relaxation", options.relaxation, open(0.0, 2.0));
-  options.warm_start = solver->boolean_or("warm_start", options.warm_start);
-  auto& recovery = options.overlap_recovery;
-  recovery.fraction = solver->number_or("penetration_correction", recovery.fraction, closed(0.0, 1.0));
-  recovery.max_velocity = solver->number_or("max_correction_velocity", recovery.max_velocity, non_negative());
-  recovery.allowed_overlap = solver->number_or("allowed_overlap", recovery.allowed_overlap, closed(0.0, 1.0));
-  options.polish_after = static_cast<int>(solver->integer_or("polish_after", options.polish_after, 0, 100'000'000));
-  options.polish_iterations =
-      static_cast<int>(solver->integer_or("polish_iterations", options.polish_iterations, 1, 10'000));
-  options.polish_max_contacts = static_cast<std::size_t>(
-      solver->integer_or("polish_max_contacts", static_cast<std::int64_t>(options.polish_max_contacts), 0, 100'000'000));
-  options.polish_attempts_per_step =
-      static_cast<int>(solver->integer_or("polish_attempts_per_step", options.polish_attempts_per_step, 1, 100));
-  options.block_count = static_cast<int>(solver->integer_or("block_count", options.block_count, 1, 1'000'000));
+  solver->allow_only(key_names(solver_keys()), "in [solver]");
+  read_section_keys(*solver, solver_keys(), draft.scene.run.step.solver);
 }
 
 void parse_detection(SceneDraft& draft) {
   const auto detection = draft.root.optional_table("detection");
   if (!detection) return;
-  detection->allow_only({"alert_distance", "pair_list_margin"}, "in [detection]");
-  auto& options = draft.scene.run.step.detection;
-  options.alert_distance = detection->number_or("alert_distance", 0.0, non_negative());
-  if (is_auto(*detection, "pair_list_margin")) {
-    options.pair_list_margin = -1.0;
-  } else {
-    options.pair_list_margin = detection->number_or("pair_list_margin", options.pair_list_margin, non_negative());
-  }
+  detection->allow_only(key_names(detection_keys()), "in [detection]");
+  read_section_keys(*detection, detection_keys(), draft.scene.run.step.detection);
 }
 
 void parse_gravity(SceneDraft& draft) {

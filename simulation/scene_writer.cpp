@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "simulation/scene_file.hpp"
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_reader.hpp"
 
 namespace rubble {
@@ -87,30 +88,6 @@ void write_time(std::ostream& out, const RunOptions& run) {
     out << "rest_duration = " << number_or_auto(run.automatic_rest_duration, run.rest.duration) << "\n";
   }
   out << "\n";
-}
-
-void write_solver(std::ostream& out, const SolverOptions& solver) {
-  out << "[solver]\n";
-  out << "tolerance = " << format_number(solver.tolerance) << "\n";
-  out << "max_iterations = " << solver.max_iterations << "\n";
-  out << "relaxation = " << format_number(solver.relaxation) << "\n";
-  out << "warm_start = " << (solver.warm_start ? "true" : "false") << "\n";
-  out << "penetration_correction = " << format_number(solver.overlap_recovery.fraction) << "\n";
-  out << "max_correction_velocity = " << format_number(solver.overlap_recovery.max_velocity) << "\n";
-  out << "allowed_overlap = " << format_number(solver.overlap_recovery.allowed_overlap) << "\n";
-  out << "polish_after = " << solver.polish_after << "\n";
-  out << "polish_iterations = " << solver.polish_iterations << "\n";
-  out << "polish_max_contacts = " << solver.polish_max_contacts << "\n";
-  out << "polish_attempts_per_step = " << solver.polish_attempts_per_step << "\n";
-  out << "block_count = " << solver.block_count << "\n\n";
-}
-
-void write_detection(std::ostream& out, const DetectionOptions& detection) {
-  out << "[detection]\n";
-  out << "alert_distance = " << format_number(detection.alert_distance) << "\n";
-  out << "pair_list_margin = "
-      << (detection.pair_list_margin < 0.0 ? std::string("\"auto\"") : format_number(detection.pair_list_margin))
-      << "\n\n";
 }
 
 void write_self_gravity(std::ostream& out, const GravitySettings& gravity) {
@@ -245,8 +222,11 @@ std::string scene_to_toml(const Scene& scene) {
   out << "name = " << toml_string(scene.name) << "\n";
   out << "seed = " << static_cast<std::int64_t>(run.seed & 0x7FFFFFFFFFFFFFFFULL) << "\n\n";
   write_time(out, run);
-  write_solver(out, run.step.solver);
-  write_detection(out, run.step.detection);
+  out << "[solver]\n";
+  scene_detail::write_section_keys(out, scene_detail::solver_keys(), run.step.solver);
+  out << "\n[detection]\n";
+  scene_detail::write_section_keys(out, scene_detail::detection_keys(), run.step.detection);
+  out << "\n";
   write_gravity(out, run.step.gravity);
   write_output(out, run.output);
   write_materials_and_laws(out, model);
