@@ -1,5 +1,7 @@
 #include "simulation/scene_keys.hpp"
 
+#include <limits>
+
 namespace rubble::scene_detail {
 
 const std::vector<SectionKey<SolverOptions>>& solver_keys() {
@@ -42,6 +44,64 @@ const std::vector<SectionKey<DetectionOptions>>& detection_keys() {
       {.name = "pair_list_margin", .option = [](O& o) -> OptionRef { return &o.pair_list_margin; },
        .range = non_negative(), .auto_when_negative = true,
        .doc = "m, the broad phase's pairs are reused until a body has moved half this margin"},
+  };
+  return keys;
+}
+
+const std::vector<SectionKey<OutputOptions>>& output_keys() {
+  using O = OutputOptions;
+  constexpr std::int64_t most = std::numeric_limits<std::int64_t>::max();
+  static const std::vector<SectionKey<O>> keys = {
+      {.name = "directory", .option = [](O& o) -> OptionRef { return &o.directory; },
+       .check =
+           [](const TableReader& table, const O& o) {
+             if (o.directory.empty()) table.fail_key("directory", "expected a folder name, got an empty string");
+           },
+       .doc = "output folder, relative to where rubble run is started"},
+      {.name = "snapshot_every_steps", .option = [](O& o) -> OptionRef { return &o.snapshot_every_steps; }, .low = 0,
+       .high = most, .written = [](const O& o) { return o.snapshot_every_steps > 0; },
+       .doc = "write a snapshot every N steps"},
+      {.name = "snapshot_interval", .option = [](O& o) -> OptionRef { return &o.snapshot_interval; },
+       .range = non_negative(), .written = [](const O& o) { return o.snapshot_every_steps <= 0; },
+       .check =
+           [](const TableReader& table, const O& o) {
+             if (o.snapshot_every_steps > 0 && o.snapshot_interval > 0.0) {
+               table.fail_key("snapshot_interval", "expected either snapshot_every_steps or snapshot_interval, not both");
+             }
+           },
+       .doc = "s of simulated time between snapshots; with both 0: 100 snapshots per run"},
+      {.name = "progress_interval", .option = [](O& o) -> OptionRef { return &o.progress_interval; },
+       .range = non_negative(), .doc = "s of wall time between progress lines"},
+      {.name = "vtk", .option = [](O& o) -> OptionRef { return &o.write_vtk; },
+       .doc = "also write the ParaView series during the run"},
+      {.name = "keep_checkpoint_every", .option = [](O& o) -> OptionRef { return &o.keep_checkpoint_every; }, .low = 0,
+       .high = most, .written = [](const O& o) { return o.keep_checkpoint_every > 0; },
+       .doc = "besides the newest two, keep the first checkpoint of every interval of N steps"},
+  };
+  return keys;
+}
+
+const std::vector<SectionKey<ContactLaw>>& contact_law_keys() {
+  using O = ContactLaw;
+  static const std::vector<SectionKey<O>> keys = {
+      {.name = "friction", .option = [](O& o) -> OptionRef { return &o.friction_coefficient; },
+       .range = non_negative(), .required = true, .doc = "Coulomb's mu"},
+      {.name = "restitution", .option = [](O& o) -> OptionRef { return &o.normal_restitution; },
+       .range = closed(0.0, 1.0), .doc = "Newton's normal restitution e_n"},
+      {.name = "tangential_restitution", .option = [](O& o) -> OptionRef { return &o.tangential_restitution; },
+       .range = closed(0.0, 1.0), .written = [](const O& o) { return o.tangential_restitution > 0.0; },
+       .doc = "e_t: Coulomb's law on u_t+ + e_t u_t-"},
+      {.name = "cohesion", .option = [](O& o) -> OptionRef { return &o.cohesion; }, .range = non_negative(),
+       .written = [](const O& o) { return o.cohesion > 0.0; }, .doc = "N, pull-off force of a pair in contact"},
+      {.name = "work_of_adhesion", .option = [](O& o) -> OptionRef { return &o.work_of_adhesion; },
+       .range = non_negative(), .written = [](const O& o) { return o.work_of_adhesion > 0.0; },
+       .doc = "J/m^2, adds the size-dependent pull-off force 2 pi W r_eff"},
+      {.name = "rolling_friction", .option = [](O& o) -> OptionRef { return &o.rolling_friction; },
+       .range = non_negative(), .written = [](const O& o) { return o.rolling_friction > 0.0; },
+       .doc = "rolling resistance of sphere contacts"},
+      {.name = "twisting_friction", .option = [](O& o) -> OptionRef { return &o.twisting_friction; },
+       .range = non_negative(), .written = [](const O& o) { return o.twisting_friction > 0.0; },
+       .doc = "twisting (spin) resistance of sphere contacts"},
   };
   return keys;
 }

@@ -1,6 +1,8 @@
-// The scene file's [[materials]], [default_contact_law] and [[contact_laws]] (docs/scene-file.md).
+// The scene file's [[materials]], [default_contact_law] and [[contact_laws]] (docs/scene-file.md);
+// the keys of a contact law are read from their table (scene_keys.hpp).
 #include <array>
 
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_parser.hpp"
 
 namespace rubble::scene_detail {
@@ -17,13 +19,7 @@ std::string known_materials(const SceneDraft& draft) {
 
 ContactLaw parse_law(const TableReader& entry) {
   ContactLaw law;
-  law.friction_coefficient = entry.number("friction", non_negative());
-  law.normal_restitution = entry.number_or("restitution", 0.0, closed(0.0, 1.0));
-  law.tangential_restitution = entry.number_or("tangential_restitution", 0.0, closed(0.0, 1.0));
-  law.cohesion = entry.number_or("cohesion", 0.0, non_negative());
-  law.work_of_adhesion = entry.number_or("work_of_adhesion", 0.0, non_negative());
-  law.rolling_friction = entry.number_or("rolling_friction", 0.0, non_negative());
-  law.twisting_friction = entry.number_or("twisting_friction", 0.0, non_negative());
+  read_section_keys(entry, contact_law_keys(), law);
   return law;
 }
 
@@ -83,17 +79,15 @@ int material_of(const SceneDraft& draft, const TableReader& entry) {
 void parse_contact_laws(SceneDraft& draft) {
   const int n = static_cast<int>(draft.scene.model.materials.size());
   if (const auto fallback = draft.root.optional_table("default_contact_law")) {
-    fallback->allow_only({"friction", "restitution", "tangential_restitution", "cohesion", "work_of_adhesion",
-                          "rolling_friction", "twisting_friction"},
-                         "in [default_contact_law]");
+    fallback->allow_only(key_names(contact_law_keys()), "in [default_contact_law]");
     draft.default_law = parse_law(*fallback);
   }
   draft.scene.model.contact_laws.reset(n, draft.default_law.value_or(ContactLaw{}));
   draft.law_defined.assign(static_cast<std::size_t>(n * n), false);
   for (const TableReader& entry : draft.root.tables("contact_laws")) {
-    entry.allow_only({"materials", "friction", "restitution", "tangential_restitution", "cohesion", "work_of_adhesion",
-                      "rolling_friction", "twisting_friction"},
-                     "in [[contact_laws]]");
+    std::vector<std::string_view> allowed = {"materials"};
+    for (const std::string_view key : key_names(contact_law_keys())) allowed.push_back(key);
+    entry.allow_only(allowed, "in [[contact_laws]]");
     const auto [a, b] = law_materials(draft, entry);
     if (draft.law_defined[static_cast<std::size_t>(a * n + b)]) {
       entry.fail(entry.get("materials"), entry.key_path("materials"),

@@ -1,5 +1,6 @@
 // The scene file's settings sections: [time], [solver], [detection], [gravity] and [output]
-// (docs/scene-file.md). [solver] and [detection] are read from their key tables (scene_keys.hpp).
+// (docs/scene-file.md). [solver], [detection] and [output] are read from their key tables
+// (scene_keys.hpp).
 #include <limits>
 #include <stdexcept>
 
@@ -183,24 +184,8 @@ void parse_gravity(SceneDraft& draft) {
 void parse_output(SceneDraft& draft) {
   const auto output = draft.root.optional_table("output");
   if (!output) return;
-  output->allow_only({"directory", "snapshot_every_steps", "snapshot_interval", "progress_interval", "vtk",
-                      "keep_checkpoint_every"},
-                     "in [output]");
-  auto& options = draft.scene.run.output;
-  if (const auto directory = output->optional_string("directory")) {
-    if (directory->empty()) output->fail_key("directory", "expected a folder name, got an empty string");
-    options.directory = *directory;
-  }
-  options.snapshot_every_steps =
-      output->integer_or("snapshot_every_steps", 0, 0, std::numeric_limits<std::int64_t>::max());
-  options.snapshot_interval = output->number_or("snapshot_interval", 0.0, non_negative());
-  if (options.snapshot_every_steps > 0 && options.snapshot_interval > 0.0) {
-    output->fail_key("snapshot_interval", "expected either snapshot_every_steps or snapshot_interval, not both");
-  }
-  options.progress_interval = output->number_or("progress_interval", options.progress_interval, non_negative());
-  options.write_vtk = output->boolean_or("vtk", options.write_vtk);
-  options.keep_checkpoint_every =
-      output->integer_or("keep_checkpoint_every", 0, 0, std::numeric_limits<std::int64_t>::max());
+  output->allow_only(key_names(output_keys()), "in [output]");
+  read_section_keys(*output, output_keys(), draft.scene.run.output);
 }
 
 }  // namespace rubble::scene_detail

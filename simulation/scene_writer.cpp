@@ -14,28 +14,7 @@ namespace {
 
 using scene_detail::format_number;
 using scene_detail::format_vec3;
-
-std::string toml_string(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buffer[8];
-          std::snprintf(buffer, sizeof buffer, "\\u%04x", static_cast<unsigned>(c));
-          out += buffer;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
+using scene_detail::toml_string;
 
 /// The keys of a driven body's prescribed motion (a constant one as velocity and
 /// angular_velocity, a table as motion = [[t, vx, vy, vz, wx, wy, wz], ...]), or of a free
@@ -128,19 +107,6 @@ void write_gravity(std::ostream& out, const GravitySettings& gravity) {
   }
 }
 
-void write_output(std::ostream& out, const OutputOptions& output) {
-  out << "[output]\n";
-  out << "directory = " << toml_string(output.directory) << "\n";
-  if (output.snapshot_every_steps > 0) {
-    out << "snapshot_every_steps = " << output.snapshot_every_steps << "\n";
-  } else {
-    out << "snapshot_interval = " << format_number(output.snapshot_interval) << "\n";
-  }
-  out << "progress_interval = " << format_number(output.progress_interval) << "\n";
-  out << "vtk = " << (output.write_vtk ? "true" : "false") << "\n";
-  if (output.keep_checkpoint_every > 0) out << "keep_checkpoint_every = " << output.keep_checkpoint_every << "\n";
-}
-
 void write_materials_and_laws(std::ostream& out, const Model& model) {
   for (const Material& material : model.materials) {
     out << "\n[[materials]]\nname = " << toml_string(material.name) << "\ndensity = " << format_number(material.density)
@@ -152,15 +118,7 @@ void write_materials_and_laws(std::ostream& out, const Model& model) {
     for (int b = a; b < n; ++b) {
       const ContactLaw& law = model.contact_laws.get(a, b);
       out << "\n[[contact_laws]]\nmaterials = [" << material_name(a) << ", " << material_name(b) << "]\n";
-      out << "friction = " << format_number(law.friction_coefficient) << "\n";
-      out << "restitution = " << format_number(law.normal_restitution) << "\n";
-      if (law.tangential_restitution > 0.0) {
-        out << "tangential_restitution = " << format_number(law.tangential_restitution) << "\n";
-      }
-      if (law.cohesion > 0.0) out << "cohesion = " << format_number(law.cohesion) << "\n";
-      if (law.work_of_adhesion > 0.0) out << "work_of_adhesion = " << format_number(law.work_of_adhesion) << "\n";
-      if (law.rolling_friction > 0.0) out << "rolling_friction = " << format_number(law.rolling_friction) << "\n";
-      if (law.twisting_friction > 0.0) out << "twisting_friction = " << format_number(law.twisting_friction) << "\n";
+      scene_detail::write_section_keys(out, scene_detail::contact_law_keys(), law);
     }
   }
 }
@@ -228,7 +186,8 @@ std::string scene_to_toml(const Scene& scene) {
   scene_detail::write_section_keys(out, scene_detail::detection_keys(), run.step.detection);
   out << "\n";
   write_gravity(out, run.step.gravity);
-  write_output(out, run.output);
+  out << "[output]\n";
+  scene_detail::write_section_keys(out, scene_detail::output_keys(), run.output);
   write_materials_and_laws(out, model);
   for (std::size_t body = 0; body < model.body_count(); ++body) write_body(out, model, scene.state, body);
   return out.str();
