@@ -1,0 +1,166 @@
+// The checks of a scene as a whole, after every section is read and before its bodies are made:
+// contact laws for every pair of materials that can touch, walls with an inside, grains inside
+// the walls and not interpenetrating (docs/scene-file.md).
+#include <algorithm>
+#include <array>
+
+#include "simulation/scene_parser.hpp"
+
+namespace rubble::scene_detail {
+
+void check_contact_law_coverage(const SceneDraft& draft) {
+  if (draft.default_law) return;
+  const auto& materials = draft.scene.model.materials;
+  const int n = static_cast<int>(materials.size());
+  std::vector<bool> grain_material(static_cast<std::size_t>(n), false);
+  std::vector<bool> wall_material(static_cast<std::size_t>(n), false);
+  for (const GrainSpec& g : draft.grains) grain_material[static_cast<std::size_t>(g.material)] = true;
+  for (const WallSpec& w : draft.walls) wall_material[static_cast<std::size_t>(w.material)] = true;
+  for (int a = 0; a < n; ++a) {
+    if (!grain_material[static_cast<std::size_t>(a)]) continue;
+    for (int b = 0; b < n; ++b) {
+      if (!grain_material[static_cast<std::size_t>(b)] && !wall_material[static_cast<std::size_t>(b)]) continue;
+      if (draft.law_defined[static_cast<std::size_t>(a * n + b)]) continue;
+      const std::string& name_a = materials[static_cast<std::size_t>(a)].name;
+      const std::string& name_b = materials[static_cast<std::size_t>(b)].name;
+      draft.root.fail(draft.root.get("contact_laws"), "contact_laws",
+                      "no contact law for materials \"" + name_a + "\" and \"" + name_b +
+                          "\", which can touch: expected a [[contact_laws]] entry with materials = [\"" + name_a +
+                          "\", \"" + name_b + "\"] (or a [default_contact_law])");
+    }
+  }
+}
+
+/// (With grains present, any other empty intersection of half-spaces is caught by the grain check.)
+void check_walls_have_an_inside(const SceneDraft& draft) {
+  const auto& walls = draft.walls;
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    if (!walls[i].is_plane) continue;
+    for (std::size_t j = i + 1; j < walls.size(); ++j) {
+      if (!walls[j].is_plane) continue;
+      const Vec3& n = walls[i].normal;
+      if (n.dot(walls[j].normal) > -1.0 + 1e-12) continue;
+      // Inside of i: n.(x - p_i) >= 0; inside of j: n.(x - p_j) <= 0 (its normal is -n).
+      const double width = n.dot(walls[j].position - walls[i].position);
+      if (width <= 0.0) {
+        draft.root.fail(walls[j].node, walls[j].path,
+                        "this plane and " + walls[i].path + " face away from each other with no space between them (" +
+                            "distance " + show_short(width) +
+                            " m along the normal): expected their normals to point into a common inside");
+      }
+    }
+  }
+}
+
+namespace {
+
+/// A polyhedron is checked by its vertices: none may be behind a plane or inside a box.
+void check_polyhedron_inside_wall(const SceneDraft& draft, const WallSpec& wall, const Mat3& to_body,
+                                  const GrainSpec& grain) {
+  const double tolerance = allowed_initial_overlap * grain.radius;
+  const Mat3 rotation = grain.orientation.toRotationMatrix();
+  for (const Vec3& vertex : grain.polyhedron->vertices) {
+    const Vec3 x = grain.position + rotation * vertex;
+    const bool bad = wall.is_plane
+                         ? wall.normal.dot(x - wall.position) < -tolerance
+                         : ((to_body * (x - wall.position)).cwiseAbs() - wall.half_extents).maxCoeff() < -tolerance;
+    if (bad) {
+      draft.root.fail(grain.origin.node, grain_key(grain.origin),
+                      grain_label(grain.origin) + " (a polyhedron centred at " + show_vec3(grain.position) +
+                          ") has a vertex at " + show_vec3(x) + (wall.is_plane ? " behind plane wall " : " inside box wall ") +
+                          wall.path + ": expected every grain entirely on the inner side of the walls");
+    }
+  }
+}
+
+void check_sphere_inside_wall(const SceneDraft& draft, const WallSpec& wall, const Mat3& to_body,
+                              const GrainSpec& grain) {
+  const double tolerance = allowed_initial_overlap * grain.radius;
+  if (wall.is_plane) {
+    const double distance = wall.normal.dot(grain.position - wall.position);
+    if (distance < grain.radius - tolerance) {
+      const std::string where = distance < 0.0 ? "has its centre behind" : "crosses";
+      draft.root.fail(grain.origin.node, grain_key(grain.origin),
+                      grain_label(grain.origin) + " at " + show_vec3(grain.position) + " (radius " +
+                          show_short(grain.radius) + " m) " + where + " plane wall " + wall.path +
+                          " (signed distance " + show_short(distance) +
+                          " m): expected every grain entirely on the side its normal points to");
+    }
+  } else {
+    const Vec3 local = to_body * (grain.position - wall.position);
+    const Vec3 outside = (local.cwiseAbs() - wall.half_extents).cwiseMax(0.0);
+    if (outside.norm() < grain.radius - tolerance) {
+      draft.root.fail(grain.origin.node, grain_key(grain.origin),
+                      grain_label(grain.origin) + " at " + show_vec3(grain.position) + " (radius " +
+                          show_short(grain.radius) + " m) overlaps box wall " + wall.path +
+                          ": expected grains outside box walls");
+    }
+  }
+}
+
+}  // namespace
+
+void check_grains_inside_walls(const SceneDraft& draft) {
+  for (const WallSpec& wall : draft.walls) {
+    const Mat3 to_body = wall.orientation.toRotationMatrix().transpose();
+    for (const GrainSpec& grain : draft.grains) {
+      if (grain.polyhedron) {
+        check_polyhedron_inside_wall(draft, wall, to_body, grain);
+      } else {
+        check_sphere_inside_wall(draft, wall, to_body, grain);
+      }
+    }
+  }
+}
+
+/// Grid search (cell = largest diameter) for pairs of grains overlapping by more than the
+/// allowed fraction of the smaller radius: O(N log N), fine for the largest scenes.
+void check_grains_do_not_overlap(const SceneDraft& draft) {
+  const auto& grains = draft.grains;
+  double radius_max = 0.0;
+  for (const GrainSpec& g : grains) radius_max = std::max(radius_max, g.radius);
+  const double cell = 2.0 * radius_max;
+  struct Entry {
+    std::array<std::int64_t, 3> cell;
+    std::size_t grain;
+  };
+  std::vector<Entry> entries(grains.size());
+  for (std::size_t i = 0; i < grains.size(); ++i) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const double c = std::floor(grains[i].position[axis] / cell);
+      entries[i].cell[static_cast<std::size_t>(axis)] = static_cast<std::int64_t>(std::clamp(c, -1e15, 1e15));
+    }
+    entries[i].grain = i;
+  }
+  const auto less = [](const Entry& a, const Entry& b) {
+    return a.cell != b.cell ? a.cell < b.cell : a.grain < b.grain;
+  };
+  std::sort(entries.begin(), entries.end(), less);
+  for (const Entry& e : entries) {
+    const GrainSpec& a = grains[e.grain];
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const Entry key{{e.cell[0] + dx, e.cell[1] + dy, e.cell[2] + dz}, 0};
+          auto it = std::lower_bound(entries.begin(), entries.end(), key, less);
+          for (; it != entries.end() && it->cell == key.cell; ++it) {
+            if (it->grain <= e.grain) continue;
+            const GrainSpec& b = grains[it->grain];
+            // Polyhedra: their bounding spheres may overlap without the solids touching, and
+            // generators never make overlapping grains, so only sphere pairs are checked.
+            if (a.polyhedron || b.polyhedron) continue;
+            const double overlap = a.radius + b.radius - (a.position - b.position).norm();
+            if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
+              draft.root.fail(b.origin.node, grain_key(b.origin),
+                              grain_label(b.origin) + " overlaps " + grain_name(a.origin) + " by " +
+                                  show_short(overlap) + " m: expected grains not to interpenetrate at the start (at most " +
+                                  show(100 * allowed_initial_overlap) + "% of the smaller radius)");
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace rubble::scene_detail
