@@ -215,9 +215,7 @@ int run_command(const RunArguments& args) {
     }
   } catch (const CheckpointError& e) {
     return bad_input(std::string("cannot resume: ") + e.what());
-  } catch (const InputError& e) {  // InputFileError and every other input error (core/input_error.hpp)
-    return bad_input(e.what());
-  } catch (const SceneError& e) {  // a std::runtime_error of its own (simulation/scene_file.hpp)
+  } catch (const InputError& e) {  // SceneError, InputFileError and every other input error (core/input_error.hpp)
     return bad_input(e.what());
   }
   if (branching) {

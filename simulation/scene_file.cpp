@@ -27,7 +27,7 @@ std::string scene_error_text(const std::string& file, int line, const std::strin
 }  // namespace
 
 SceneError::SceneError(std::string file_, int line_, std::string key_, std::string message_)
-    : std::runtime_error(scene_error_text(file_, line_, key_, message_)),
+    : InputError(scene_error_text(file_, line_, key_, message_)),
       file(std::move(file_)),
       line(line_),
       key(std::move(key_)),

@@ -15,11 +15,13 @@
 
 #include "simulation/scene.hpp"
 
+#include "core/input_error.hpp"
+
 namespace rubble {
 
 /// A problem in a scene file. what() is "FILE:LINE: KEY: message" (":LINE" left out when the line
 /// is unknown, "KEY: " when the problem is not tied to one key).
-class SceneError : public std::runtime_error {
+class SceneError : public InputError {
  public:
   /// Builds the error and its what() text from the parts.
   SceneError(std::string file, int line, std::string key, std::string message);

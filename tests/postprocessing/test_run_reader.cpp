@@ -26,7 +26,7 @@ Model make_model() {
   Model model;
   model.materials = {{"basalt", 3000.0}, {"ice", 917.0}};
   model.contact_laws.reset(2, ContactLaw{0.3, 0.1});
-  model.contact_laws.set(0, 1, ContactLaw{0.5, 0.0});
+  model.contact_laws.set(0, 1, ContactLaw{0.5, 0.0, 2.5, 0.125, 0.05, 0.02, 0.75});
   add_sphere(model, 0.5, 0);
   const Vec3 half(0.5, 0.25, 0.125);
   add_polyhedron(model, test::box_polyhedron(half), test::box_volume(half), test::box_inertia_per_density(half), 1);
@@ -100,6 +100,14 @@ TEST(RunReader, ReadsBackWhatWasWritten) {
   EXPECT_EQ(m.materials[1].name, "ice");
   EXPECT_EQ(m.contact_laws.get(1, 0).friction_coefficient, 0.5);
   EXPECT_EQ(m.contact_laws.get(1, 1).normal_restitution, 0.1);
+  // Every parameter of the law comes back (rubble export writes the laws the run used).
+  const ContactLaw& law = m.contact_laws.get(1, 0);
+  EXPECT_EQ(law.cohesion, 2.5);
+  EXPECT_EQ(law.work_of_adhesion, 0.125);
+  EXPECT_EQ(law.rolling_friction, 0.05);
+  EXPECT_EQ(law.twisting_friction, 0.02);
+  EXPECT_EQ(law.tangential_restitution, 0.75);
+  EXPECT_EQ(m.contact_laws.get(1, 1).cohesion, 0.0);
 
   const RunSeries series = reader.read_series();
   ASSERT_EQ(series.step.size(), 10u);
