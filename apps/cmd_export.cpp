@@ -18,9 +18,9 @@ namespace rubble::apps {
 namespace {
 
 struct ExportArguments {
-  std::string run_file;         ///< RUN.h5 (or a run folder)
-  std::int64_t snapshot = -1;   ///< which snapshot (negative: from the end)
-  std::string output;           ///< SCENE.toml, or "-" for stdout
+  std::string run_file;        ///< RUN.h5 (or a run folder)
+  std::int64_t snapshot = -1;  ///< which snapshot (negative: from the end)
+  std::string output;          ///< SCENE.toml, or "-" for stdout
 };
 
 int bad_input(const std::string& message) {
@@ -40,8 +40,8 @@ int export_command(const ExportArguments& args) {
     // The run options as the run parsed them (its scene text), the bodies as the run file holds them.
     Scene scene = parse_scene(saved.scene_text, source.path.string() + ":/scene");
     if (const auto mismatch = body_mismatch(scene.model, saved.model)) {
-      return bad_input(fmt::format("{}: the run's scene text does not rebuild its bodies: {}", source.path.string(),
-                                   *mismatch));
+      return bad_input(
+          fmt::format("{}: the run's scene text does not rebuild its bodies: {}", source.path.string(), *mismatch));
     }
     const RunReader reader = RunReader::open(source.path);
     // The bodies as the run file holds them; the prescribed motions of driven bodies (not in the
@@ -94,8 +94,9 @@ void register_export_command(CLI::App& app) {
   CLI::App* command = app.add_subcommand(
       "export", "Write a saved state of a run (a snapshot of RUN.h5) as a scene file with every grain explicit");
   command->add_option("run", args->run_file, "Run file RUN.h5 (or its run folder)")->required();
-  command->add_option("--snapshot", args->snapshot,
-                      "Snapshot index, 0-based; negative counts from the end (default -1: the last)")
+  command
+      ->add_option("--snapshot", args->snapshot,
+                   "Snapshot index, 0-based; negative counts from the end (default -1: the last)")
       ->type_name("K");
   command->add_option("-o,--output", args->output, "Scene file to write (- for stdout)")->required();
   command->callback([args] {

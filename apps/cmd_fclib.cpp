@@ -46,9 +46,10 @@ std::optional<std::string> bad_diagonal(const LocalProblem& problem) {
       }
     }
     if (!(diagonal > 0.0)) {
-      return fmt::format("contact {}: W[{}][{}] (its normal Delassus diagonal) is {}: expected > 0 (W is positive "
-                         "definite on each contact; 0 is a contact between bodies of infinite mass)",
-                         k, row, row, diagonal);
+      return fmt::format(
+          "contact {}: W[{}][{}] (its normal Delassus diagonal) is {}: expected > 0 (W is positive "
+          "definite on each contact; 0 is a contact between bodies of infinite mass)",
+          k, row, row, diagonal);
     }
   }
   return std::nullopt;
@@ -120,7 +121,8 @@ int fclib_command(FclibArguments& args) {
       // unreported; a solution file that does not read back equal was not written.
       std::vector<double> r, u;
       read_fclib_solution(args.output, r, u);
-      if (r != solution.r || u != solution.u) throw FclibFileError(args.output + ": the solution did not read back equal");
+      if (r != solution.r || u != solution.u)
+        throw FclibFileError(args.output + ": the solution did not read back equal");
     } catch (const FclibFileError& e) {
       std::cerr << "rubble fclib: output failure: cannot write the solution: " << e.what()
                 << " (disk full or I/O error?)\n";

@@ -67,14 +67,12 @@ struct NonFiniteField : std::runtime_error {
 /// Reads a numeric dataset as doubles and returns its dimensions. Throws BadInput.
 std::vector<double> read_dataset(hid_t file, const std::string& path, const std::string& name,
                                  std::vector<hsize_t>& dims) {
-  if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0)
-    throw BadInput(path + ": missing dataset '" + name + "'");
+  if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0) throw BadInput(path + ": missing dataset '" + name + "'");
   Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
   if (!ds) throw BadInput(path + ": '" + name + "' is not a dataset");
   Handle type(H5Dget_type(ds.get()), H5Tclose);
   const H5T_class_t cls = H5Tget_class(type.get());
-  if (cls != H5T_FLOAT && cls != H5T_INTEGER)
-    throw BadInput(path + ": dataset '" + name + "' is not numeric");
+  if (cls != H5T_FLOAT && cls != H5T_INTEGER) throw BadInput(path + ": dataset '" + name + "' is not numeric");
   Handle space(H5Dget_space(ds.get()), H5Sclose);
   const int rank = H5Sget_simple_extent_ndims(space.get());
   if (rank < 0) throw BadInput(path + ": cannot read the shape of dataset '" + name + "'");
@@ -86,13 +84,13 @@ std::vector<double> read_dataset(hid_t file, const std::string& path, const std:
   // memory before allocating it (simulation/memory_estimate.hpp).
   const double bytes = 8.0 * static_cast<double>(count);
   if (const double available = available_memory(); available > 0.0 && bytes > 0.5 * available) {
-    throw BadInput(fmt::format("{}: dataset '{}' has {} values ({:.3g} GB as doubles), more than half of the "
-                               "{:.3g} GB of memory this process may use",
-                               path, name, count, bytes / 1e9, available / 1e9));
+    throw BadInput(
+        fmt::format("{}: dataset '{}' has {} values ({:.3g} GB as doubles), more than half of the "
+                    "{:.3g} GB of memory this process may use",
+                    path, name, count, bytes / 1e9, available / 1e9));
   }
   std::vector<double> values(static_cast<std::size_t>(count));
-  if (count > 0 &&
-      H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+  if (count > 0 && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
     throw BadInput(path + ": cannot read dataset '" + name + "' as double precision numbers");
   return values;
 }
@@ -103,14 +101,12 @@ std::string shape_string(const std::vector<hsize_t>& dims) {
   return s + (dims.size() == 1 ? ",)" : ")");
 }
 
-void write_dataset(hid_t file, const std::string& path, const char* name,
-                   const std::vector<hsize_t>& dims, const std::vector<double>& values) {
+void write_dataset(hid_t file, const std::string& path, const char* name, const std::vector<hsize_t>& dims,
+                   const std::vector<double>& values) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
-  Handle ds(H5Dcreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
-                       H5P_DEFAULT),
-            H5Dclose);
-  if (!ds || (!values.empty() && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
-                                                  H5P_DEFAULT, values.data()) < 0))
+  Handle ds(H5Dcreate2(file, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  if (!ds ||
+      (!values.empty() && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0))
     throw std::runtime_error(path + ": cannot write dataset '" + name + "'");
 }
 
@@ -124,12 +120,18 @@ int gravity_command(const GravityArguments& args) {
   const QuietHdf5 quiet;
   gravity::GravityOptions options;
   try {
-    if (args.method == "tree") options.method = gravity::Method::tree;
-    else if (args.method == "direct") options.method = gravity::Method::direct;
-    else throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
-    if (args.backend == "cpu") options.backend = gravity::Backend::cpu;
-    else if (args.backend == "cuda") options.backend = gravity::Backend::cuda;
-    else throw BadInput("--backend must be 'cpu' or 'cuda', got '" + args.backend + "'");
+    if (args.method == "tree")
+      options.method = gravity::Method::tree;
+    else if (args.method == "direct")
+      options.method = gravity::Method::direct;
+    else
+      throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
+    if (args.backend == "cpu")
+      options.backend = gravity::Backend::cpu;
+    else if (args.backend == "cuda")
+      options.backend = gravity::Backend::cuda;
+    else
+      throw BadInput("--backend must be 'cpu' or 'cuda', got '" + args.backend + "'");
     if (!(args.theta > 0) || !std::isfinite(args.theta))
       throw BadInput("--theta must be a finite number > 0, got " + std::to_string(args.theta));
     if (args.order != 1 && args.order != 2)
@@ -172,18 +174,19 @@ int gravity_command(const GravityArguments& args) {
     }
     for (std::size_t i = 0; i < positions.size(); ++i)
       if (!std::isfinite(positions[i]))
-        throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) +
-                       "] is not finite");
+        throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) + "] is not finite");
     for (std::size_t i = 0; i < positions.size(); ++i)
       if (std::abs(positions[i]) > max_coordinate)
-        throw BadInput(fmt::format("{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
-                                   "overflows double precision)",
-                                   in, i / 3, i % 3, positions[i], max_coordinate));
+        throw BadInput(fmt::format(
+            "{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
+            "overflows double precision)",
+            in, i / 3, i % 3, positions[i], max_coordinate));
     for (std::size_t i = 0; i < masses.size(); ++i)
       if (masses[i] > max_mass)
-        throw BadInput(fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
-                                   "double precision)",
-                                   in, i, masses[i], max_mass));
+        throw BadInput(
+            fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
+                        "double precision)",
+                        in, i, masses[i], max_mass));
 
     // ---- compute
     if (args.threads > 0) omp_set_num_threads(args.threads);
@@ -200,11 +203,12 @@ int gravity_command(const GravityArguments& args) {
     for (std::size_t i = 0; i < n; ++i) {
       if (!std::isfinite(acc[3 * i]) || !std::isfinite(acc[3 * i + 1]) || !std::isfinite(acc[3 * i + 2]) ||
           !std::isfinite(pot[i])) {
-        throw NonFiniteField(fmt::format(
-            "{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the field overflows "
-            "double precision: a large --G, or particles very close together without --softening)",
-            in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
-            acc[3 * i + 2], pot[i]));
+        throw NonFiniteField(
+            fmt::format("{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the "
+                        "field overflows "
+                        "double precision: a large --G, or particles very close together without --softening)",
+                        in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
+                        acc[3 * i + 2], pot[i]));
       }
     }
 

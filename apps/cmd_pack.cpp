@@ -63,11 +63,13 @@ void register_pack_command(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"cubic-grid", "cloud", "box"}));
   pack->add_option("--n", args->count, "Number of grains (cubic-grid: a cube k^3)")->check(CLI::Range(1.0, 1e8));
-  pack->add_option("--shape", args->shape, "spheres, polyhedra (random convex, as in the LMGC90 accretion paper) or mix")
+  pack->add_option("--shape", args->shape,
+                   "spheres, polyhedra (random convex, as in the LMGC90 accretion paper) or mix")
       ->check(CLI::IsMember({"spheres", "polyhedra", "mix"}));
   pack->add_option("--polyhedron-fraction", args->polyhedron_fraction, "mix: share of polyhedra by number")
       ->check(CLI::Range(0.0, 1.0));
-  pack->add_option("--dmin", args->d_min, "Smallest diameter, m (circumscribed for polyhedra)")->check(CLI::PositiveNumber);
+  pack->add_option("--dmin", args->d_min, "Smallest diameter, m (circumscribed for polyhedra)")
+      ->check(CLI::PositiveNumber);
   pack->add_option("--dmax", args->d_max, "Largest diameter, m (the grid's mesh)")->check(CLI::PositiveNumber);
   pack->add_option("--distribution", args->distribution, "volume-fraction (the study's), uniform, monodisperse or bins")
       ->check(CLI::IsMember({"volume-fraction", "uniform", "monodisperse", "bins"}));
@@ -91,7 +93,8 @@ void register_pack_command(CLI::App& app) {
   pack->add_option("-o,--out", args->output, "Scene file to write (default -: standard output)");
   pack->add_flag("--explicit", args->explicit_grains, "List every grain in the file instead of the generator and seed");
   pack->callback([args] {
-    if (args->distribution == "bins" && args->bins.empty()) throw CLI::ValidationError("--bins", "needed with --distribution bins");
+    if (args->distribution == "bins" && args->bins.empty())
+      throw CLI::ValidationError("--bins", "needed with --distribution bins");
     if (args->d_max < args->d_min && args->distribution != "monodisperse" && args->distribution != "bins") {
       throw CLI::ValidationError("--dmax", "expected dmax >= dmin");
     }

@@ -75,8 +75,8 @@ struct RunArguments {
   bool print_default = false;
   std::string default_scene = "spheres";  ///< without SCENE: "spheres" or "polyhedra"
   bool quiet = false;
-  std::string from;  ///< --from RUN_DIR[:last|:snapshot=K|:time=T]: branch from a saved state
-  std::string until;  ///< --until rest|end_time ("": the scene's)
+  std::string from;                        ///< --from RUN_DIR[:last|:snapshot=K|:time=T]: branch from a saved state
+  std::string until;                       ///< --until rest|end_time ("": the scene's)
   double rest_speed = -1.0;                ///< --rest-speed (< 0: the scene's)
   double rest_quantile = -1.0;             ///< --rest-quantile
   double rest_coordination_change = -1.0;  ///< --rest-coordination-change
@@ -233,9 +233,10 @@ int run_command(const RunArguments& args) {
       // (an aggregate at rest set spinning).
       set_prescribed_velocities(scene.model, scene.state);
       if (const auto k = apply_initial_conditions(scene.model, scene.initial_conditions, scene.state)) {
-        return bad_input(fmt::format("--from {}: [[initial_conditions]] entry {} of {} selects no grain of the saved "
-                                     "state",
-                                     args.from, *k + 1, control.scene_source));
+        return bad_input(
+            fmt::format("--from {}: [[initial_conditions]] entry {} of {} selects no grain of the saved "
+                        "state",
+                        args.from, *k + 1, control.scene_source));
       }
       branch_description = saved.description;
     } catch (const BranchError& e) {
@@ -276,8 +277,9 @@ int run_command(const RunArguments& args) {
   control.progress = progress;
   control.warnings = &std::cerr;
   if (progress) {
-    *progress << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies, dt = "
-              << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
+    *progress << "rubble run: " << scene.name << ": " << scene.model.body_count()
+              << " bodies, dt = " << scene.run.step.integrator.time_step
+              << (scene.run.automatic_time_step ? " s (auto)" : " s")
               << (scene.run.until_rest
                       ? fmt::format(", until at rest ({}) or t = ", describe_rest_criterion(scene.run.rest))
                       : std::string(", until t = "))
@@ -302,17 +304,17 @@ int run_command(const RunArguments& args) {
       return 128 + signal_number;
     }
     std::cout << "rubble run: done: " << summary.steps << " steps"
-              << (summary.first_step > 0 ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched",
-                                                       summary.first_step)
-                                         : std::string())
+              << (summary.first_step > 0
+                      ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched", summary.first_step)
+                      : std::string())
               << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
               << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
               << summary.mean_iterations << ", max residual " << summary.max_residual << ", "
               << summary.unconverged_steps << " steps at the iteration cap"
-              << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts) : std::string())
+              << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts)
+                                              : std::string())
               << "\n"
-              << stage_breakdown(summary)
-              << "  output: " << summary.run_file.string() << " (" << summary.snapshots
+              << stage_breakdown(summary) << "  output: " << summary.run_file.string() << " (" << summary.snapshots
               << " snapshots; layout in docs/output-format.md)\n"
               << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)
               << ", checkpoint " << summary.last_checkpoint.string() << "\n"
@@ -364,11 +366,11 @@ void register_run_command(CLI::App& app) {
   const auto positive = number("a finite number > 0", [](double v) { return v > 0.0; });
   const auto non_negative = number("a finite number >= 0", [](double v) { return v >= 0.0; });
   // Below 2^62: a count must fit the 64-bit step counters with room to add to them.
-  const auto count = number("an integer >= 0 and < 2^62", [](double v) { return v >= 0.0 && v == std::floor(v) && v < 0x1p62; });
+  const auto count =
+      number("an integer >= 0 and < 2^62", [](double v) { return v >= 0.0 && v == std::floor(v) && v < 0x1p62; });
   CLI::Option* scene_option = run->add_option("scene", args->scene_path, "Scene file (TOML, see docs/scene-file.md)");
   run->add_option("-o,--out", args->output_directory, "Output directory (overrides the scene's output.directory)");
-  run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")
-      ->check(positive);
+  run->add_option("--end-time", args->end_time, "Override the scene's end time (s)")->check(positive);
   run->add_option("--resume", args->resume_directory,
                   "Go on with the run in DIR from its newest valid checkpoint (DIR/checkpoints)")
       ->type_name("DIR");

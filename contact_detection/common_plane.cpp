@@ -78,12 +78,12 @@ bool arcs_cross(const Vec3& a1, const Vec3& a2, const Vec3& a2_x_a1, const Vec3&
 
 struct SimplexVertex {
   Vec3 w = Vec3::Zero();  // b - a
-  int ia = 0;  // vertex of A
-  int ib = 0;  // vertex of B
+  int ia = 0;             // vertex of A
+  int ib = 0;             // vertex of B
 };
 
 struct GjkResult {
-  bool separated = false;   // false: touching or overlapping (within round-off)
+  bool separated = false;       // false: touching or overlapping (within round-off)
   Vec3 closest = Vec3::Zero();  // the point of D closest to the origin (direction A -> B)
 };
 
@@ -122,17 +122,32 @@ bool reduce_simplex(std::array<SimplexVertex, 4>& s, int& count, Vec3& closest) 
     const Vec3& c = s[static_cast<std::size_t>(ic)].w;
     const Vec3 ab = b - a, ac = c - a, ap = -a;
     const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    if (d1 <= 0.0 && d2 <= 0.0) { out = a; return 1; }
+    if (d1 <= 0.0 && d2 <= 0.0) {
+      out = a;
+      return 1;
+    }
     const Vec3 bp = -b;
     const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    if (d3 >= 0.0 && d4 <= d3) { out = b; return 2; }
+    if (d3 >= 0.0 && d4 <= d3) {
+      out = b;
+      return 2;
+    }
     const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) { out = a + d1 / (d1 - d3) * ab; return 3; }
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+      out = a + d1 / (d1 - d3) * ab;
+      return 3;
+    }
     const Vec3 cp = -c;
     const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    if (d6 >= 0.0 && d5 <= d6) { out = c; return 4; }
+    if (d6 >= 0.0 && d5 <= d6) {
+      out = c;
+      return 4;
+    }
     const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) { out = a + d2 / (d2 - d6) * ac; return 5; }
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+      out = a + d2 / (d2 - d6) * ac;
+      return 5;
+    }
     const double va = d3 * d6 - d5 * d4;
     if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
       out = b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
@@ -146,7 +161,8 @@ bool reduce_simplex(std::array<SimplexVertex, 4>& s, int& count, Vec3& closest) 
     std::array<SimplexVertex, 4> kept;
     int k = 0;
     for (int bit = 0; bit < 3; ++bit) {
-      if (code & (1 << bit)) kept[static_cast<std::size_t>(k++)] = s[static_cast<std::size_t>(ids[static_cast<std::size_t>(bit)])];
+      if (code & (1 << bit))
+        kept[static_cast<std::size_t>(k++)] = s[static_cast<std::size_t>(ids[static_cast<std::size_t>(bit)])];
     }
     s = kept;
     count = k;
@@ -225,7 +241,8 @@ GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, c
     if (v2 - v.dot(w.w) <= 1e-12 * v2) break;
     bool repeated = false;
     for (int i = 0; i < count; ++i) {
-      if (simplex[static_cast<std::size_t>(i)].ia == w.ia && simplex[static_cast<std::size_t>(i)].ib == w.ib) repeated = true;
+      if (simplex[static_cast<std::size_t>(i)].ia == w.ia && simplex[static_cast<std::size_t>(i)].ib == w.ib)
+        repeated = true;
     }
     if (repeated) break;
     simplex[static_cast<std::size_t>(count++)] = w;
@@ -262,7 +279,7 @@ CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
   const ConvexPolyhedron& A = *pa.shape;
   const ConvexPolyhedron& B = *pb.shape;
   // Everything is done in A's body frame: A's data is used as stored, B is moved into it.
-  const Mat3 rotation = pa.rotation.transpose() * pb.rotation;         // B body -> A body
+  const Mat3 rotation = pa.rotation.transpose() * pb.rotation;                     // B body -> A body
   const Vec3 translation = pa.rotation.transpose() * (pb.position - pa.position);  // B centroid in A
   const double size = std::min(A.bounding_radius, B.bounding_radius);
   CommonPlane result;

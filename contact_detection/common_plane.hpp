@@ -34,10 +34,10 @@ struct PolyhedronInWorld {
 
 /// How the common plane was found (for statistics and tests).
 enum class CommonPlaneSource : unsigned char {
-  warm_start,  ///< the initial normal was kept (already beyond the cutoff, or as good as the best)
-  face_a,      ///< a face normal of A
-  face_b,      ///< a face normal of B (negated)
-  edge_edge,   ///< the cross product of an edge of A and an edge of B
+  warm_start,      ///< the initial normal was kept (already beyond the cutoff, or as good as the best)
+  face_a,          ///< a face normal of A
+  face_b,          ///< a face normal of B (negated)
+  edge_edge,       ///< the cross product of an edge of A and an edge of B
   closest_points,  ///< GJK closest-points direction (separated bodies)
 };
 

@@ -33,25 +33,25 @@ enum class ContactStatus : std::uint8_t {
 /// positive when separating, and the impulse r is the impulse on body b over the step (N s);
 /// body a receives -r.
 struct Contact {
-  ContactId id;                       ///< identity for warm start
-  Vec3 point = Vec3::Zero();          ///< m, world frame (midway between the surfaces)
-  Mat3 frame = Mat3::Identity();      ///< columns n, t, s (world frame)
-  double gap = 0.0;                   ///< m, signed distance between the surfaces
+  ContactId id;                   ///< identity for warm start
+  Vec3 point = Vec3::Zero();      ///< m, world frame (midway between the surfaces)
+  Mat3 frame = Mat3::Identity();  ///< columns n, t, s (world frame)
+  double gap = 0.0;               ///< m, signed distance between the surfaces
 
   // Filled by the solver's preparation.
-  Vec3 arm_a = Vec3::Zero();           ///< m, point - centre of mass of a
-  Vec3 arm_b = Vec3::Zero();           ///< m, point - centre of mass of b
-  Mat3 delassus = Mat3::Zero();        ///< W_aa: local relative velocity per unit local impulse
-  double friction_coefficient = 0.0;   ///< mu of the pair's contact law
-  double normal_restitution = 0.0;     ///< e_n of the pair's contact law
-  double normal_velocity_before = 0.0; ///< U_n at the start of the step, m/s
-  double normal_velocity_target = 0.0; ///< b: the solver enforces 0 <= r_n _|_ U_n - b >= 0, m/s
+  Vec3 arm_a = Vec3::Zero();            ///< m, point - centre of mass of a
+  Vec3 arm_b = Vec3::Zero();            ///< m, point - centre of mass of b
+  Mat3 delassus = Mat3::Zero();         ///< W_aa: local relative velocity per unit local impulse
+  double friction_coefficient = 0.0;    ///< mu of the pair's contact law
+  double normal_restitution = 0.0;      ///< e_n of the pair's contact law
+  double normal_velocity_before = 0.0;  ///< U_n at the start of the step, m/s
+  double normal_velocity_target = 0.0;  ///< b: the solver enforces 0 <= r_n _|_ U_n - b >= 0, m/s
   /// c = F_c h / (points of the pair), N s: the pull this point may exert (ContactLaw::cohesion);
   /// the solver enforces 0 <= r_n + c _|_ U_n - b >= 0 and ||r_T|| <= mu (r_n + c). 0 without cohesion.
   double cohesive_impulse = 0.0;
 
   // The unknown.
-  Vec3 impulse = Vec3::Zero();         ///< local impulse (r_n, r_t, r_s), N s (r_n >= -cohesive_impulse)
+  Vec3 impulse = Vec3::Zero();                 ///< local impulse (r_n, r_t, r_s), N s (r_n >= -cohesive_impulse)
   ContactStatus status = ContactStatus::open;  ///< after the solve
 };
 

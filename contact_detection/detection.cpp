@@ -31,7 +31,8 @@ Aabb wall_box(const Model& model, const State& state, std::size_t wall, double m
   const Box& box = model.boxes[static_cast<std::size_t>(model.shape_index[wall])];
   // Extent of a rotated box along each world axis: sum_j |R_ij| h_j.
   const Vec3 extent = state.orientation[wall].toRotationMatrix().cwiseAbs() * box.half_extents;
-  return {state.position[wall] - extent - Vec3::Constant(margin), state.position[wall] + extent + Vec3::Constant(margin)};
+  return {state.position[wall] - extent - Vec3::Constant(margin),
+          state.position[wall] + extent + Vec3::Constant(margin)};
 }
 
 }  // namespace
@@ -96,7 +97,8 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
     std::size_t bucket_count = 64;
     while (bucket_count < 2 * grains.size()) bucket_count <<= 1;
     auto bucket_of = [&](const Cell& c) {
-      const std::uint64_t h = static_cast<std::uint64_t>(c.x()) * 73856093u ^ static_cast<std::uint64_t>(c.y()) * 19349663u ^
+      const std::uint64_t h = static_cast<std::uint64_t>(c.x()) * 73856093u ^
+                              static_cast<std::uint64_t>(c.y()) * 19349663u ^
                               static_cast<std::uint64_t>(c.z()) * 83492791u;
       return static_cast<std::size_t>(h & (bucket_count - 1));
     };
@@ -112,7 +114,8 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
     };
     // Counting sort of (bucket, grain) entries: buckets list their grains in increasing order.
     std::vector<std::uint32_t> bucket_start(bucket_count + 1, 0);
-    for (std::size_t k = 0; k < grains.size(); ++k) for_each_cell(k, [&](const Cell& c) { ++bucket_start[bucket_of(c) + 1]; });
+    for (std::size_t k = 0; k < grains.size(); ++k)
+      for_each_cell(k, [&](const Cell& c) { ++bucket_start[bucket_of(c) + 1]; });
     for (std::size_t b = 0; b < bucket_count; ++b) bucket_start[b + 1] += bucket_start[b];
     std::vector<std::uint32_t> bucket_grains(bucket_start.back());
     {
@@ -128,7 +131,7 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
     constexpr std::size_t chunk = 256;
     const auto chunk_count = static_cast<std::ptrdiff_t>((grains.size() + chunk - 1) / chunk);
     std::vector<std::vector<BodyPair>> chunk_pairs(static_cast<std::size_t>(chunk_count));
-#pragma omp parallel for schedule(dynamic, 1) if (static_cast<std::ptrdiff_t>(grains.size()) >= min_parallel_items)
+#pragma omp parallel for schedule(dynamic, 1) if (static_cast <std::ptrdiff_t>(grains.size()) >= min_parallel_items)
     for (std::ptrdiff_t i = 0; i < chunk_count; ++i) {
       std::vector<BodyPair>& out = chunk_pairs[static_cast<std::size_t>(i)];
       const std::size_t first = static_cast<std::size_t>(i) * chunk;
@@ -156,7 +159,8 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
   for (const std::uint32_t wall : walls) {
     if (model.shape_kind[wall] == ShapeKind::plane) {
       // Half-space test: only grains whose bounding sphere comes within the alert distance.
-      const Vec3 normal = state.orientation[wall] * model.planes[static_cast<std::size_t>(model.shape_index[wall])].normal;
+      const Vec3 normal =
+          state.orientation[wall] * model.planes[static_cast<std::size_t>(model.shape_index[wall])].normal;
       for (const std::uint32_t grain : grains) {
         const double gap = normal.dot(state.position[grain] - state.position[wall]) - model.bounding_radius[grain];
         if (gap < alert_distance) wall_pairs.push_back({std::min(wall, grain), std::max(wall, grain)});
@@ -298,7 +302,8 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
   if (!std::is_sorted(next.pairs.begin(), next.pairs.end())) {
     std::vector<std::size_t> by_pair(next.pairs.size());
     for (std::size_t i = 0; i < by_pair.size(); ++i) by_pair[i] = i;
-    std::sort(by_pair.begin(), by_pair.end(), [&](std::size_t x, std::size_t y) { return next.pairs[x] < next.pairs[y]; });
+    std::sort(by_pair.begin(), by_pair.end(),
+              [&](std::size_t x, std::size_t y) { return next.pairs[x] < next.pairs[y]; });
     std::vector<BodyPair> sorted_pairs(by_pair.size());
     std::vector<Vec3> sorted_normals(by_pair.size());
     for (std::size_t i = 0; i < by_pair.size(); ++i) {

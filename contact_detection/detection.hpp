@@ -42,8 +42,8 @@ struct DetectionStats {
 /// Remembered between steps for persistent pairs: the common-plane normal of polyhedron pairs
 /// (warm start of the common-plane iteration). Sorted by pair; part of what a checkpoint saves.
 struct DetectionMemory {
-  std::vector<BodyPair> pairs;         ///< sorted
-  std::vector<Vec3> common_normals;    ///< world frame, one per pair
+  std::vector<BodyPair> pairs;       ///< sorted
+  std::vector<Vec3> common_normals;  ///< world frame, one per pair
   /// The broad phase's pairs within alert distance + margin (DetectionOptions::pair_list_margin),
   /// and every body's position when they were found. Not saved in checkpoints: an empty list is
   /// rebuilt, and a list from any earlier step gives the same contacts.
@@ -86,8 +86,8 @@ ContactList detect_contacts(const Model& model, const State& state, const Detect
 /// be freed before this step's is built (at 10^5 spheres the two lists alive at once were the
 /// run's peak memory).
 struct CarriedImpulse {
-  ContactId id;                 ///< identity of last step's contact
-  Vec3 world_impulse;           ///< N s, impulse on body b in the world frame
+  ContactId id;        ///< identity of last step's contact
+  Vec3 world_impulse;  ///< N s, impulse on body b in the world frame
 };
 
 /// Last step's contacts reduced to what carry_impulses needs, in the same (id) order.

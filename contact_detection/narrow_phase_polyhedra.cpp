@@ -53,7 +53,8 @@ struct CapVertex {
 /// segment (2 points) or a point (1).
 std::vector<CapVertex> hull_2d(std::vector<CapVertex> points, double tolerance) {
   std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
-    return a.p.x() < b.p.x() || (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
+    return a.p.x() < b.p.x() ||
+           (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
   });
   // Merge coincident points (keep the lowest vertex id for determinism).
   std::vector<CapVertex> unique;
@@ -125,8 +126,9 @@ Vec2 closest_on_boundary(const std::vector<CapVertex>& polygon, const Vec2& q, s
     if (d < best_distance) {
       best_distance = d;
       best_point = c;
-      feature = t == 0.0 ? vertex_code(p0.vertex) : t == 1.0 ? vertex_code(p1.vertex)
-                                                          : edge_code(p0.vertex, p1.vertex, vertex_count);
+      feature = t == 0.0   ? vertex_code(p0.vertex)
+                : t == 1.0 ? vertex_code(p1.vertex)
+                           : edge_code(p0.vertex, p1.vertex, vertex_count);
     }
   }
   return best_point;
@@ -160,10 +162,10 @@ bool segments_cross(const Vec2& a0, const Vec2& a1, const Vec2& b0, const Vec2& 
 
 /// A candidate contact point on the common plane.
 struct Candidate {
-  Vec2 p;                      ///< plane coordinates
-  double gap = 0.0;            ///< local gap
-  double height_a = 0.0;       ///< height of A's surface along n
-  double height_b = 0.0;       ///< height of B's surface along n
+  Vec2 p;                 ///< plane coordinates
+  double gap = 0.0;       ///< local gap
+  double height_a = 0.0;  ///< height of A's surface along n
+  double height_b = 0.0;  ///< height of B's surface along n
   std::uint32_t feature_a = 0;
   std::uint32_t feature_b = 0;
 };
@@ -252,7 +254,9 @@ std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, s
     const double deficit = predicted - all[i].gap;
     if (deficit > tolerance) deficits.emplace_back(deficit, i);
   }
-  std::sort(deficits.begin(), deficits.end(), [](const auto& x, const auto& y) { return x.first > y.first || (x.first == y.first && x.second < y.second); });
+  std::sort(deficits.begin(), deficits.end(), [](const auto& x, const auto& y) {
+    return x.first > y.first || (x.first == y.first && x.second < y.second);
+  });
   for (const auto& [deficit, i] : deficits) {
     if (kept.size() >= max_points) break;
     kept.push_back(all[i]);
@@ -312,7 +316,8 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
   auto caps = [&](double depth) {
     std::vector<CapVertex> cap_a, cap_b;
     for (std::size_t i = 0; i < A.vertices.size(); ++i) {
-      if (n.dot(A.vertices[i]) >= top_a - depth) cap_a.push_back({Vec2(t.dot(A.vertices[i]), s.dot(A.vertices[i])), static_cast<int>(i)});
+      if (n.dot(A.vertices[i]) >= top_a - depth)
+        cap_a.push_back({Vec2(t.dot(A.vertices[i]), s.dot(A.vertices[i])), static_cast<int>(i)});
     }
     for (std::size_t i = 0; i < vb.size(); ++i) {
       if (n.dot(vb[i]) <= bottom_b + depth) cap_b.push_back({Vec2(t.dot(vb[i]), s.dot(vb[i])), static_cast<int>(i)});
@@ -377,8 +382,7 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
     for (const CapVertex& c : polygon_a) {
       if (inside(polygon_b, c.p, feature_tolerance)) {
         add(c.p, n.dot(A.vertices[static_cast<std::size_t>(c.vertex)]), height_b(clamp_into(polygon_b, c.p)),
-            vertex_code(c.vertex),
-            face_code(face_b));
+            vertex_code(c.vertex), face_code(face_b));
       }
     }
     for (const CapVertex& c : polygon_b) {
@@ -538,14 +542,14 @@ void collide_plane_polyhedron(const Model& model, const State& state, std::uint3
     const double gap = centre_height + normal_body.dot(shape.vertices[i]);
     if (gap >= alert_distance) continue;
     const Vec3 x = grain_pose.rotation * shape.vertices[i] + grain_pose.position;
-    candidates.push_back({Vec2(frame.col(1).dot(x), frame.col(2).dot(x)), gap, 0.0, 0.0, 0u,
-                          vertex_code(static_cast<int>(i))});
+    candidates.push_back(
+        {Vec2(frame.col(1).dot(x), frame.col(2).dot(x)), gap, 0.0, 0.0, 0u, vertex_code(static_cast<int>(i))});
   }
   const double size = shape.bounding_radius;
   const double linear_tolerance = 1e-7 * size;
-  const std::vector<Candidate> kept = add_off_plane_points(candidates, reduce_to_four(candidates, 1e-12 * size * size),
-                                                           std::max(linear_tolerance, 0.01 * alert_distance),
-                                                           max_points_per_pair);
+  const std::vector<Candidate> kept =
+      add_off_plane_points(candidates, reduce_to_four(candidates, 1e-12 * size * size),
+                           std::max(linear_tolerance, 0.01 * alert_distance), max_points_per_pair);
   for (const Candidate& c : kept) {
     const int vertex = static_cast<int>(c.feature_b & index_mask);
     const Vec3 x = grain_pose.rotation * shape.vertices[static_cast<std::size_t>(vertex)] + grain_pose.position;

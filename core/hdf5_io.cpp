@@ -48,24 +48,25 @@ void add_filters(hid_t properties, const Storage& storage, const std::filesystem
 bool filtered(const Storage& storage) { return storage.fletcher32 || storage.gzip_level > 0; }
 
 void write_array(hid_t parent, const std::string& name, hid_t file_type, hid_t memory_type, const void* data,
-                 std::size_t size, std::span<const hsize_t> dims, const std::filesystem::path& file,
-                 Storage storage) {
+                 std::size_t size, std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
   if (element_count(dims) != size) {
     throw std::invalid_argument(where(file, "dataset '" + name + "': data size does not match its shape"));
   }
   // No dimensions: a scalar dataset (one value).
-  Handle space = own(dims.empty() ? H5Screate(H5S_SCALAR)
-                                  : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
-                     H5Sclose, file, "dataspace of '" + name + "'");
+  Handle space =
+      own(dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
+          H5Sclose, file, "dataspace of '" + name + "'");
   Handle properties = own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, "dataset properties");
   if (filtered(storage) && size > 0 && !dims.empty()) {
     std::vector<hsize_t> chunk(dims.begin(), dims.end());
     chunk[0] = std::min(chunk[0], filtered_chunk_rows);
-    check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), file, "chunking of '" + name + "'");
+    check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), file,
+          "chunking of '" + name + "'");
     add_filters(properties.get(), storage, file, name);
   }
-  Handle dataset = own(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
-                       H5Dclose, file, "cannot create dataset '" + name + "'");
+  Handle dataset =
+      own(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
+          H5Dclose, file, "cannot create dataset '" + name + "'");
   // A zero-size dataset has nothing to write, but it exists with its shape (h5py reads it).
   if (size > 0) {
     check(H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), file,
@@ -178,20 +179,20 @@ std::vector<std::string> link_names(hid_t group, const std::filesystem::path& fi
   return names;
 }
 
-void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+void write_doubles(hid_t parent, const std::string& name, std::span<const double> data, std::span<const hsize_t> dims,
+                   const std::filesystem::path& file, Storage storage) {
   write_array(parent, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data.data(), data.size(), dims, file, storage);
 }
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
   write_array(parent, name, H5T_STD_I64LE, H5T_NATIVE_INT64, data.data(), data.size(), dims, file, storage);
 }
 void write_int32s(hid_t parent, const std::string& name, std::span<const std::int32_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+                  std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
   write_array(parent, name, H5T_STD_I32LE, H5T_NATIVE_INT32, data.data(), data.size(), dims, file, storage);
 }
 void write_int8s(hid_t parent, const std::string& name, std::span<const std::int8_t> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
+                 std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage) {
   write_array(parent, name, H5T_STD_I8LE, H5T_NATIVE_INT8, data.data(), data.size(), dims, file, storage);
 }
 
@@ -261,15 +262,16 @@ void write_attribute_on(hid_t parent, const std::string& object_name, const std:
                         const std::filesystem::path& file) {
   Handle type = utf8_string_type(file);
   Handle space = own(H5Screate(H5S_SCALAR), H5Sclose, file, "scalar dataspace");
-  Handle attribute = own(H5Acreate_by_name(parent, object_name.c_str(), name.c_str(), type.get(), space.get(), H5P_DEFAULT,
-                                           H5P_DEFAULT, H5P_DEFAULT),
+  Handle attribute = own(H5Acreate_by_name(parent, object_name.c_str(), name.c_str(), type.get(), space.get(),
+                                           H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                          H5Aclose, file, "cannot create attribute '" + name + "' of '" + object_name + "'");
   const std::string owned(value);
   const char* pointer = owned.c_str();
   check(H5Awrite(attribute.get(), type.get(), &pointer), file, "cannot write attribute '" + name + "'");
 }
 
-void replace_attribute(hid_t object, const std::string& name, std::string_view value, const std::filesystem::path& file) {
+void replace_attribute(hid_t object, const std::string& name, std::string_view value,
+                       const std::filesystem::path& file) {
   if (H5Aexists(object, name.c_str()) > 0) {
     check(H5Adelete(object, name.c_str()), file, "cannot replace attribute '" + name + "'");
   }
@@ -367,8 +369,8 @@ ExtendableColumn::ExtendableColumn(hid_t parent, const std::string& name, hid_t 
                  H5Dclose, file, "cannot create dataset '" + name + "'");
 }
 
-ExtendableColumn ExtendableColumn::open_truncated(hid_t parent, const std::string& name, hid_t type,
-                                                  hsize_t keep_rows, const std::filesystem::path& file) {
+ExtendableColumn ExtendableColumn::open_truncated(hid_t parent, const std::string& name, hid_t type, hsize_t keep_rows,
+                                                  const std::filesystem::path& file) {
   ExtendableColumn column;
   column.type_ = type;
   column.name_ = name;

@@ -128,8 +128,8 @@ struct Storage {
 
 /// Writes a dataset of shape dims (row-major) from `data` (size = product of dims; may be 0; no dims: a
 /// scalar).
-void write_doubles(hid_t parent, const std::string& name, std::span<const double> data,
-                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
+void write_doubles(hid_t parent, const std::string& name, std::span<const double> data, std::span<const hsize_t> dims,
+                   const std::filesystem::path& file, Storage storage = {});
 /// Same for 64-bit integers.
 void write_int64s(hid_t parent, const std::string& name, std::span<const std::int64_t> data,
                   std::span<const hsize_t> dims, const std::filesystem::path& file, Storage storage = {});
@@ -160,7 +160,8 @@ void write_attribute_on(hid_t parent, const std::string& object_name, const std:
                         const std::filesystem::path& file);
 /// Replaces a scalar string attribute (creates it if missing): for values that change while the
 /// file is written, such as a run's status.
-void replace_attribute(hid_t object, const std::string& name, std::string_view value, const std::filesystem::path& file);
+void replace_attribute(hid_t object, const std::string& name, std::string_view value,
+                       const std::filesystem::path& file);
 
 /// A dataset read back: its shape and its values converted to the requested type.
 template <typename T>

@@ -65,7 +65,8 @@ std::string read_input_file(const std::filesystem::path& path, std::uintmax_t ma
     done += static_cast<std::size_t>(n);
   }
   if (done > max_bytes) {
-    throw fail("the " + what + " has more than " + std::to_string(max_bytes) + " bytes, the limit (" + mib(max_bytes) + ")");
+    throw fail("the " + what + " has more than " + std::to_string(max_bytes) + " bytes, the limit (" + mib(max_bytes) +
+               ")");
   }
   text.resize(done);
   return text;

@@ -23,7 +23,8 @@ struct InputFileError : InputError {
 
 /// Largest scene file read, bytes (256 MiB: 10^6 grains written one by one take ~150 MB).
 inline constexpr std::uintmax_t max_scene_file_bytes = 256ull << 20;
-/// Largest polyhedron mesh file read, bytes (64 MiB: the vertex cap, 10^6 vertices, takes ~40 MB as OFF with its faces).
+/// Largest polyhedron mesh file read, bytes (64 MiB: the vertex cap, 10^6 vertices, takes ~40 MB as OFF with its
+/// faces).
 inline constexpr std::uintmax_t max_mesh_file_bytes = 64ull << 20;
 
 /// Reads `path` whole. It must be a regular file (links are followed) of at most `max_bytes`;

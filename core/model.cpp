@@ -75,7 +75,8 @@ RigidVelocity prescribed_velocity(const PrescribedMotion& motion, double time) {
 }
 
 void drive_body(Model& model, int body, PrescribedMotion motion) {
-  if (body < 0 || static_cast<std::size_t>(body) >= model.body_count()) throw std::invalid_argument("body id out of range");
+  if (body < 0 || static_cast<std::size_t>(body) >= model.body_count())
+    throw std::invalid_argument("body id out of range");
   const std::size_t knots = motion.time.size();
   if (knots == 0 || motion.velocity.size() != knots || motion.angular_velocity.size() != knots) {
     throw std::invalid_argument("a prescribed motion needs one velocity and one angular velocity per knot");

@@ -13,8 +13,8 @@ namespace rubble {
 
 /// A bulk material: the density that turns a shape's volume into mass.
 struct Material {
-  std::string name;     ///< as written in the scene file
-  double density = 0;   ///< kg/m^3
+  std::string name;    ///< as written in the scene file
+  double density = 0;  ///< kg/m^3
 };
 
 /// The frictional contact law between two materials (Signorini and Coulomb plus Newton restitution).
@@ -54,8 +54,8 @@ struct ContactLaw {
 
 /// Contact laws by material pair, symmetric: law(a, b) == law(b, a).
 struct ContactLawTable {
-  int material_count = 0;         ///< number of materials
-  std::vector<ContactLaw> laws;   ///< material_count^2 entries, row-major
+  int material_count = 0;        ///< number of materials
+  std::vector<ContactLaw> laws;  ///< material_count^2 entries, row-major
 
   /// Resizes to n materials, every pair getting `fallback`.
   void reset(int n, const ContactLaw& fallback) {
@@ -113,15 +113,15 @@ RigidVelocity prescribed_velocity(const PrescribedMotion& motion, double time);
 /// body id; walls are bodies with zero inverse mass and inertia.
 struct Model {
   // --- per body ---
-  std::vector<ShapeKind> shape_kind;     ///< which table shape_index points into
-  std::vector<int> shape_index;          ///< index into spheres / polyhedra / planes / boxes
-  std::vector<int> material;             ///< index into materials
-  std::vector<double> mass;              ///< kg (0 for walls, meaning infinite)
-  std::vector<double> inverse_mass;      ///< 1/kg (0 for walls)
-  std::vector<Vec3> principal_inertia;   ///< kg m^2, body frame (0 for walls)
-  std::vector<Vec3> inverse_inertia;     ///< 1/(kg m^2), body frame (0 for walls)
-  std::vector<double> bounding_radius;   ///< m, radius of the sphere around the body origin (inf for planes)
-  std::vector<double> volume;            ///< m^3 (0 for walls)
+  std::vector<ShapeKind> shape_kind;    ///< which table shape_index points into
+  std::vector<int> shape_index;         ///< index into spheres / polyhedra / planes / boxes
+  std::vector<int> material;            ///< index into materials
+  std::vector<double> mass;             ///< kg (0 for walls, meaning infinite)
+  std::vector<double> inverse_mass;     ///< 1/kg (0 for walls)
+  std::vector<Vec3> principal_inertia;  ///< kg m^2, body frame (0 for walls)
+  std::vector<Vec3> inverse_inertia;    ///< 1/(kg m^2), body frame (0 for walls)
+  std::vector<double> bounding_radius;  ///< m, radius of the sphere around the body origin (inf for planes)
+  std::vector<double> volume;           ///< m^3 (0 for walls)
   /// Index into prescribed_motions of a driven body (its velocity is prescribed), -1 for a free
   /// grain or a still wall. Driven bodies also have zero inverse mass and inertia (is_fixed).
   std::vector<int> motion_of_body;

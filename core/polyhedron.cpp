@@ -28,7 +28,8 @@ void check_indices(const std::vector<Vec3>& vertices, const Faces& faces) {
     for (int v : faces[f]) {
       if (v < 0 || v >= n) {
         fail("face " + std::to_string(f) + " uses vertex " + std::to_string(v) + ", expected 0.." +
-             std::to_string(n - 1), static_cast<int>(f));
+                 std::to_string(n - 1),
+             static_cast<int>(f));
       }
     }
   }
@@ -44,10 +45,10 @@ constexpr std::size_t hull_check_min_vertices = 256;
 /// is the highest vertex of all (the simplex method's principle), so the maximum is found by
 /// walking uphill from any vertex, in O(path) instead of O(V).
 struct HullGraph {
-  std::vector<int> vertex;            ///< input index of hull vertex k
-  std::vector<int> hull_index;        ///< per input vertex: its hull vertex, or -1 (not extreme)
-  std::vector<std::size_t> offsets;   ///< hull vertex k's neighbours are neighbours[offsets[k] .. offsets[k+1])
-  std::vector<int> neighbours;        ///< hull vertex indices
+  std::vector<int> vertex;           ///< input index of hull vertex k
+  std::vector<int> hull_index;       ///< per input vertex: its hull vertex, or -1 (not extreme)
+  std::vector<std::size_t> offsets;  ///< hull vertex k's neighbours are neighbours[offsets[k] .. offsets[k+1])
+  std::vector<int> neighbours;       ///< hull vertex indices
 };
 
 /// CGAL's convex hull (exact predicates, so the hull's combinatorics are right for any input)
@@ -68,7 +69,8 @@ HullGraph hull_graph(const std::vector<Vec3>& vertices) {
     const Vec3& v = vertices[static_cast<std::size_t>(i)];
     return std::make_tuple(v.x(), v.y(), v.z());
   };
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return std::make_pair(key(a), a) < std::make_pair(key(b), b); });
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return std::make_pair(key(a), a) < std::make_pair(key(b), b); });
   HullGraph graph;
   graph.hull_index.assign(vertices.size(), -1);
   std::vector<int> index_of(mesh.number_of_vertices() + mesh.number_of_removed_vertices(), -1);
@@ -87,7 +89,8 @@ HullGraph hull_graph(const std::vector<Vec3>& vertices) {
     const int k = index_of[static_cast<std::size_t>(v.idx())];
     if (k < 0) continue;
     for (const Mesh::Vertex_index w : CGAL::vertices_around_target(mesh.halfedge(v), mesh)) {
-      if (index_of[static_cast<std::size_t>(w.idx())] >= 0) graph.neighbours.push_back(index_of[static_cast<std::size_t>(w.idx())]);
+      if (index_of[static_cast<std::size_t>(w.idx())] >= 0)
+        graph.neighbours.push_back(index_of[static_cast<std::size_t>(w.idx())]);
     }
     graph.offsets[static_cast<std::size_t>(k) + 1] = graph.neighbours.size();
   }
@@ -103,7 +106,8 @@ int highest_vertex(const HullGraph& hull, const std::vector<Vec3>& vertices, con
   double value = n.dot(vertices[static_cast<std::size_t>(hull.vertex[static_cast<std::size_t>(k)])]);
   for (bool moved = true; moved;) {
     moved = false;
-    for (std::size_t e = hull.offsets[static_cast<std::size_t>(k)]; e < hull.offsets[static_cast<std::size_t>(k) + 1]; ++e) {
+    for (std::size_t e = hull.offsets[static_cast<std::size_t>(k)]; e < hull.offsets[static_cast<std::size_t>(k) + 1];
+         ++e) {
       const int next = hull.neighbours[e];
       const double h = n.dot(vertices[static_cast<std::size_t>(hull.vertex[static_cast<std::size_t>(next)])]);
       if (h > value) {  // strictly uphill: the walk ends
@@ -162,7 +166,7 @@ PolyhedronMassProperties mass_properties(const std::vector<Vec3>& vertices, cons
       const Vec3 p2 = vertices[static_cast<std::size_t>(face[k])] - reference;
       const Vec3 p3 = vertices[static_cast<std::size_t>(face[k + 1])] - reference;
       const double v = p1.dot(p2.cross(p3)) / 6.0;  // signed volume of (reference, p1, p2, p3)
-      const Vec3 s = p1 + p2 + p3;                 // p0 = 0
+      const Vec3 s = p1 + p2 + p3;                  // p0 = 0
       volume += v;
       first += v * s / 4.0;
       second += v / 20.0 * (p1 * p1.transpose() + p2 * p2.transpose() + p3 * p3.transpose() + s * s.transpose());
@@ -208,7 +212,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     for (std::size_t i = 0; i < face.size(); ++i) {
       const int from = face[i];
       const int to = face[(i + 1) % face.size()];
-      if (from == to) fail("face " + std::to_string(f) + " repeats vertex " + std::to_string(from), static_cast<int>(f));
+      if (from == to)
+        fail("face " + std::to_string(f) + " repeats vertex " + std::to_string(from), static_cast<int>(f));
       directed.push_back({from, to, static_cast<int>(f)});
       used[static_cast<std::size_t>(from)] = 1;
     }
@@ -216,13 +221,14 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
   for (std::size_t v = 0; v < vertices.size(); ++v) {
     if (!used[v]) fail("vertex " + std::to_string(v) + " is on no face", -1, static_cast<int>(v));
   }
-  std::sort(directed.begin(), directed.end(),
-            [](const DirectedEdge& x, const DirectedEdge& y) { return std::tie(x.from, x.to) < std::tie(y.from, y.to); });
+  std::sort(directed.begin(), directed.end(), [](const DirectedEdge& x, const DirectedEdge& y) {
+    return std::tie(x.from, x.to) < std::tie(y.from, y.to);
+  });
   for (std::size_t i = 1; i < directed.size(); ++i) {
     if (directed[i].from == directed[i - 1].from && directed[i].to == directed[i - 1].to) {
       fail("edge " + std::to_string(directed[i].from) + "-" + std::to_string(directed[i].to) +
-           " is used twice in the same direction (faces " + std::to_string(directed[i - 1].face) + " and " +
-           std::to_string(directed[i].face) + "): inconsistent orientation or non-manifold",
+               " is used twice in the same direction (faces " + std::to_string(directed[i - 1].face) + " and " +
+               std::to_string(directed[i].face) + "): inconsistent orientation or non-manifold",
            directed[i].face);
     }
   }
@@ -239,7 +245,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     const DirectedEdge* reverse = find_directed(e.to, e.from);
     if (reverse == nullptr) {
       fail("edge " + std::to_string(e.from) + "-" + std::to_string(e.to) + " of face " + std::to_string(e.face) +
-           " has no neighbouring face: the surface is not closed",
+               " has no neighbouring face: the surface is not closed",
            e.face);
     }
     if (e.from < e.to) {
@@ -247,8 +253,8 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       edge_faces.emplace_back(e.face, reverse->face);
     }
   }
-  const long euler = static_cast<long>(vertices.size()) - static_cast<long>(edges.size()) +
-                     static_cast<long>(faces.size());
+  const long euler =
+      static_cast<long>(vertices.size()) - static_cast<long>(edges.size()) + static_cast<long>(faces.size());
   if (euler != 2) fail("Euler characteristic V - E + F = " + std::to_string(euler) + ", expected 2 (a sphere)");
 
   // --- mass properties, body frame ---
@@ -309,7 +315,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       const double h = n.dot(shape.vertices[v]);
       if (h > own + tolerance) {
         fail("not convex: vertex " + std::to_string(v) + " lies " + std::to_string(h - own) +
-             " m outside the plane of face " + std::to_string(f),
+                 " m outside the plane of face " + std::to_string(f),
              static_cast<int>(f), static_cast<int>(v));
       }
       offset = std::max(offset, h);
@@ -328,12 +334,13 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       const Vec3& r = shape.vertices[static_cast<std::size_t>(face[(i + 2) % face.size()])];
       if (n.dot(p) < own - tolerance) {
         fail("face " + std::to_string(f) + " is not planar: vertex " + std::to_string(face[i]) + " is " +
-             std::to_string(own - n.dot(p)) + " m below its plane",
+                 std::to_string(own - n.dot(p)) + " m below its plane",
              static_cast<int>(f));
       }
       // A convex face turns left at every corner (seen from outside).
       if (n.dot((q - p).cross(r - q)) < -tolerance * (q - p).norm()) {
-        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " + std::to_string(face[(i + 1) % face.size()]),
+        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " +
+                 std::to_string(face[(i + 1) % face.size()]),
              static_cast<int>(f));
       }
     }
@@ -388,7 +395,8 @@ ConvexPolyhedron make_box_polyhedron(const Vec3& half_extents) {
     v.emplace_back((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z());
   }
   // CCW seen from outside.
-  std::vector<std::vector<int>> f = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  std::vector<std::vector<int>> f = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
   return make_convex_polyhedron(std::move(v), std::move(f));
 }
 

@@ -25,9 +25,9 @@ struct PolyhedronError : std::invalid_argument {
 
 /// Volume, centroid and inertia of a closed polyhedral surface, for a unit density.
 struct PolyhedronMassProperties {
-  double volume = 0.0;                       ///< m^3
-  Vec3 centroid = Vec3::Zero();              ///< m, in the frame of the input vertices
-  Mat3 inertia_per_density = Mat3::Zero();   ///< m^5, inertia tensor about the centroid / density
+  double volume = 0.0;                      ///< m^3
+  Vec3 centroid = Vec3::Zero();             ///< m, in the frame of the input vertices
+  Mat3 inertia_per_density = Mat3::Zero();  ///< m^5, inertia tensor about the centroid / density
 };
 
 /// Exact mass properties of the solid bounded by `faces` (vertex indices, counter-clockwise seen
@@ -57,8 +57,8 @@ struct PolyhedronBuildOptions {
 
 /// Where the body frame sits in the frame of the input vertices: x_input = centroid + orientation x_body.
 struct PolyhedronPose {
-  Vec3 centroid = Vec3::Zero();            ///< m, centre of mass in the input frame
-  Quat orientation = Quat::Identity();     ///< body frame (principal axes) -> input frame
+  Vec3 centroid = Vec3::Zero();         ///< m, centre of mass in the input frame
+  Quat orientation = Quat::Identity();  ///< body frame (principal axes) -> input frame
 };
 
 /// Builds a convex polyhedron from a closed surface mesh: checks it (every index valid, every

@@ -43,7 +43,7 @@ struct Box {
 /// grain"). Reads like a std::vector<std::vector<int>>: lists[i] is a span of list i, a range-for
 /// yields the spans in order.
 struct IndexLists {
-  std::vector<int> indices;          ///< every list's entries, list after list
+  std::vector<int> indices;               ///< every list's entries, list after list
   std::vector<std::uint32_t> offsets{0};  ///< list i is indices[offsets[i], offsets[i+1]); offsets[0] = 0
 
   IndexLists() = default;
@@ -99,8 +99,8 @@ struct IndexLists {
     using difference_type = std::ptrdiff_t;               ///< distance between lists
     using pointer = void;                                 ///< lists are returned by value
     using reference = Span;                               ///< lists are returned by value
-    Owner* owner = nullptr;  ///< the lists
-    std::size_t i = 0;       ///< current list
+    Owner* owner = nullptr;                               ///< the lists
+    std::size_t i = 0;                                    ///< current list
     /// The current list.
     Span operator*() const { return (*owner)[i]; }
     /// Next list.
@@ -137,17 +137,17 @@ struct IndexLists {
 /// releases spare capacity: a scene holds one per grain, so its heap footprint is the per-grain
 /// memory (flat arrays only, 9 heap blocks).
 struct ConvexPolyhedron {
-  std::vector<Vec3> vertices;                  ///< m, body frame
-  IndexLists faces;                            ///< per face: vertex indices, CCW from outside
-  std::vector<Vec3> face_normals;              ///< unit outward normals, one per face
-  std::vector<std::pair<int, int>> edges;      ///< each undirected edge once (i < j)
-  std::vector<double> face_offsets;            ///< m, d_f = max over the vertices of n_f . x (supporting plane)
-  std::vector<std::pair<int, int>> edge_faces; ///< per edge: the face on its left (i -> j CCW) and on its right
-  IndexLists vertex_neighbours;                ///< per vertex: the vertices sharing an edge with it
-  Vec3 box_min = Vec3::Zero();                 ///< m, body-frame bounding box, lower corner
-  Vec3 box_max = Vec3::Zero();                 ///< m, body-frame bounding box, upper corner
-  double bounding_radius = 0.0;                ///< m, max |x| over the vertices (sphere about the centroid)
-  double volume = 0.0;                         ///< m^3
+  std::vector<Vec3> vertices;                         ///< m, body frame
+  IndexLists faces;                                   ///< per face: vertex indices, CCW from outside
+  std::vector<Vec3> face_normals;                     ///< unit outward normals, one per face
+  std::vector<std::pair<int, int>> edges;             ///< each undirected edge once (i < j)
+  std::vector<double> face_offsets;                   ///< m, d_f = max over the vertices of n_f . x (supporting plane)
+  std::vector<std::pair<int, int>> edge_faces;        ///< per edge: the face on its left (i -> j CCW) and on its right
+  IndexLists vertex_neighbours;                       ///< per vertex: the vertices sharing an edge with it
+  Vec3 box_min = Vec3::Zero();                        ///< m, body-frame bounding box, lower corner
+  Vec3 box_max = Vec3::Zero();                        ///< m, body-frame bounding box, upper corner
+  double bounding_radius = 0.0;                       ///< m, max |x| over the vertices (sphere about the centroid)
+  double volume = 0.0;                                ///< m^3
   Vec3 principal_inertia_per_density = Vec3::Zero();  ///< m^5, diagonal of the inertia tensor / density
 };
 

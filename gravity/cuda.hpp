@@ -26,8 +26,7 @@ std::string unavailable_reason();
 /// target in index order with fused multiply-adds) as rubble::gravity::direct_sum(). Throws
 /// BackendUnavailable (a GravityError) when !available(), GravityError on a CUDA error.
 /// compute_field() with Backend::cuda and Method::direct calls it.
-void direct_sum(const GravityOptions& options, std::span<const double> positions,
-                std::span<const double> masses, std::span<double> accelerations,
-                std::span<double> potential);
+void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+                std::span<double> accelerations, std::span<double> potential);
 
 }  // namespace rubble::gravity::cuda

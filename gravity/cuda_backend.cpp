@@ -17,9 +17,8 @@ std::string unavailable_reason() {
   return detail::device_count(&reason) > 0 ? std::string() : reason;
 }
 
-void direct_sum(const GravityOptions& options, std::span<const double> positions,
-                std::span<const double> masses, std::span<double> accelerations,
-                std::span<double> potential) {
+void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+                std::span<double> accelerations, std::span<double> potential) {
   GravityOptions o = options;
   o.method = Method::direct;
   validate(o, positions, masses, accelerations, potential);
@@ -27,8 +26,8 @@ void direct_sum(const GravityOptions& options, std::span<const double> positions
   if (detail::device_count(&reason) == 0) throw BackendUnavailable("CUDA backend: " + reason);
   const double eps = options.softening.kind == Softening::Kind::plummer ? options.softening.length : 0.0;
   try {
-    detail::direct_sum(positions.data(), masses.data(), masses.size(), eps * eps, options.G,
-                       accelerations.data(), potential.empty() ? nullptr : potential.data());
+    detail::direct_sum(positions.data(), masses.data(), masses.size(), eps * eps, options.G, accelerations.data(),
+                       potential.empty() ? nullptr : potential.data());
   } catch (const std::runtime_error& e) {
     throw GravityError(e.what());
   }

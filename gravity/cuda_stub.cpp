@@ -9,8 +9,8 @@ bool available() { return false; }
 std::string unavailable_reason() {
   return "rubble_gravity was built without the CUDA backend (no CUDA compiler at configure time)";
 }
-void direct_sum(const GravityOptions&, std::span<const double>, std::span<const double>,
-                std::span<double>, std::span<double>) {
+void direct_sum(const GravityOptions&, std::span<const double>, std::span<const double>, std::span<double>,
+                std::span<double>) {
   throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }
 

@@ -24,26 +24,22 @@ struct SoA {
 };
 
 double eps2_of(const GravityOptions& options) {
-  return options.softening.kind == Softening::Kind::plummer
-             ? options.softening.length * options.softening.length
-             : 0.0;
+  return options.softening.kind == Softening::Kind::plummer ? options.softening.length * options.softening.length : 0.0;
 }
 
 /// Field on particle i (self excluded). With softening the kernel includes the self term
 /// m_i / eps in the potential (its acceleration is zero since r = 0): it is removed here.
 detail::Accum field_on(const SoA& s, std::size_t i, double eps2) {
   detail::Accum acc;
-  detail::p2p(s.x.data(), s.y.data(), s.z.data(), s.m.data(), s.m.size(), s.x[i], s.y[i], s.z[i],
-              eps2, acc);
+  detail::p2p(s.x.data(), s.y.data(), s.z.data(), s.m.data(), s.m.size(), s.x[i], s.y[i], s.z[i], eps2, acc);
   if (eps2 > 0.0) acc.phi -= s.m[i] / std::sqrt(eps2);
   return acc;
 }
 
 }  // namespace
 
-void direct_sum(const GravityOptions& options, std::span<const double> positions,
-                std::span<const double> masses, std::span<double> accelerations,
-                std::span<double> potential) {
+void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+                std::span<double> accelerations, std::span<double> potential) {
   GravityOptions o = options;
   o.method = Method::direct;
   validate(o, positions, masses, accelerations, potential);

@@ -11,9 +11,8 @@ namespace rubble::gravity {
 /// Exact field of all particles on all particles (self excluded). Same array conventions as
 /// compute_field(); options.method/theta/order/leaf_size are ignored. OpenMP over targets, each
 /// target summed in index order by the SIMD kernel: results do not depend on the thread count.
-void direct_sum(const GravityOptions& options, std::span<const double> positions,
-                std::span<const double> masses, std::span<double> accelerations,
-                std::span<double> potential);
+void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+                std::span<double> accelerations, std::span<double> potential);
 
 /// Exact field on a subset of the particles: for k = 0..K-1, target i = targets[k] receives the
 /// field of all particles j != i in accelerations[3k..3k+2] and potential[k] (potential may be

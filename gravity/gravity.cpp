@@ -55,36 +55,31 @@ void validate_particles(const GravityOptions& options, std::span<const double> p
       (!(options.softening.length >= 0) || !std::isfinite(options.softening.length)))
     throw GravityError("softening length must be finite and >= 0");
   if (positions.size() != 3 * masses.size())
-    throw GravityError("positions must hold 3 values per mass (got " +
-                       std::to_string(positions.size()) + " values for " +
-                       std::to_string(masses.size()) + " masses)");
+    throw GravityError("positions must hold 3 values per mass (got " + std::to_string(positions.size()) +
+                       " values for " + std::to_string(masses.size()) + " masses)");
   for (std::size_t i = 0; i < masses.size(); ++i) {
     if (!std::isfinite(masses[i]) || masses[i] < 0)
       throw GravityError("mass " + std::to_string(i) + " is not a finite number >= 0");
     for (int d = 0; d < 3; ++d)
-      if (!std::isfinite(positions[3 * i + d]))
-        throw GravityError("position " + std::to_string(i) + " is not finite");
+      if (!std::isfinite(positions[3 * i + d])) throw GravityError("position " + std::to_string(i) + " is not finite");
   }
 }
 
-void validate(const GravityOptions& options, std::span<const double> positions,
-              std::span<const double> masses, std::span<const double> accelerations,
-              std::span<const double> potential) {
+void validate(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+              std::span<const double> accelerations, std::span<const double> potential) {
   if (options.method == Method::tree) {
-    if (!(options.theta > 0) || !std::isfinite(options.theta))
-      throw GravityError("theta must be a finite number > 0");
-    if (options.order != 1 && options.order != 2)
-      throw GravityError("order must be 1 (monopole) or 2 (quadrupole)");
+    if (!(options.theta > 0) || !std::isfinite(options.theta)) throw GravityError("theta must be a finite number > 0");
+    if (options.order != 1 && options.order != 2) throw GravityError("order must be 1 (monopole) or 2 (quadrupole)");
     if (options.leaf_size < 1) throw GravityError("leaf_size must be >= 1");
     if (options.group_size < 1) throw GravityError("group_size must be >= 1");
   }
   validate_particles(options, positions, masses);
   if (accelerations.size() != positions.size())
-    throw GravityError("accelerations must hold 3N values (" + std::to_string(positions.size()) +
-                       "), got " + std::to_string(accelerations.size()));
+    throw GravityError("accelerations must hold 3N values (" + std::to_string(positions.size()) + "), got " +
+                       std::to_string(accelerations.size()));
   if (!potential.empty() && potential.size() != masses.size())
-    throw GravityError("potential must be empty or hold N values (" +
-                       std::to_string(masses.size()) + "), got " + std::to_string(potential.size()));
+    throw GravityError("potential must be empty or hold N values (" + std::to_string(masses.size()) + "), got " +
+                       std::to_string(potential.size()));
 }
 
 FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,

@@ -90,9 +90,8 @@ void require_backend(const GravityOptions& options);
 
 /// Checks options and array sizes; throws GravityError with a message naming the problem.
 /// positions: 3N values, masses: N values, accelerations: 3N values, potential: N values or empty.
-void validate(const GravityOptions& options, std::span<const double> positions,
-              std::span<const double> masses, std::span<const double> accelerations,
-              std::span<const double> potential);
+void validate(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
+              std::span<const double> accelerations, std::span<const double> potential);
 
 /// Checks options and the particle arrays only (positions 3N finite, masses N finite and >= 0).
 void validate_particles(const GravityOptions& options, std::span<const double> positions,

@@ -61,9 +61,8 @@ __attribute__((target("avx512f"))) inline double lane_sum(__m512d v) {
 inline __mmask8 tail_mask(std::size_t count) { return static_cast<__mmask8>((1u << count) - 1u); }
 
 template <int kNewtonSteps>
-__attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const double* sy,
-                                                   const double* sz, const double* sm,
-                                                   std::size_t n, double xi, double yi, double zi,
+__attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const double* sy, const double* sz,
+                                                   const double* sm, std::size_t n, double xi, double yi, double zi,
                                                    double eps2, Accum& acc) {
   const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
   const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
@@ -98,8 +97,8 @@ __attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const doubl
 namespace {
 
 RUBBLE_GRAVITY_CLONES
-void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm,
-                  std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
+                  double yi, double zi, double eps2, Accum& acc) {
   double ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
   for (std::size_t j = 0; j < n; ++j) {
@@ -127,16 +126,16 @@ void p2p_portable(const double* sx, const double* sy, const double* sz, const do
 
 }  // namespace
 
-void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
-         double xi, double yi, double zi, double eps2, Accum& acc) {
+void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi, double yi,
+         double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
   if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 #endif
   p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
-void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
-                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
+                     double yi, double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
   if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 #endif
@@ -144,10 +143,9 @@ void p2p_approximate(const double* sx, const double* sy, const double* sz, const
 }
 
 RUBBLE_GRAVITY_CLONES
-void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm,
-                    const double* qxx, const double* qxy, const double* qxz, const double* qyy,
-                    const double* qyz, const double* qzz, std::size_t n, double xi, double yi,
-                    double zi, double eps2, Accum& acc) {
+void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
+                    const double* qxy, const double* qxz, const double* qyy, const double* qyz, const double* qzz,
+                    std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
   double ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
   for (std::size_t j = 0; j < n; ++j) {

@@ -20,15 +20,15 @@ struct Accum {
 /// r_ij^2 + eps2 == 0 (the target itself when eps2 == 0) contributes nothing. When eps2 > 0 the
 /// target itself, if among the sources, contributes m_i / eps to phi (zero to a): the caller
 /// removes it.
-void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
-         double xi, double yi, double zi, double eps2, Accum& acc);
+void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi, double yi,
+         double zi, double eps2, Accum& acc);
 
 /// p2p for the tree: each term may be smaller than p2p's by a relative 1.7e-8 at most (on AVX-512
 /// CPUs 1/sqrt(r^2) takes one Newton step instead of two; elsewhere it is p2p). The tree's own
 /// error is >= 1e-6 at any practical theta, so this changes no quoted tree error, and it saves
 /// 3 of the 16 multiply/FMA instructions per 8 pairs that bound the kernel.
-void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm,
-                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc);
+void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
+                     double yi, double zi, double eps2, Accum& acc);
 
 /// Quadrupole cell-particle: adds the field of n cells, each with mass m, centre of mass c and
 /// second moment M_ab = sum_k m_k (y_k - c)_a (y_k - c)_b (not trace-free, so that the softened
@@ -39,9 +39,8 @@ void p2p_approximate(const double* sx, const double* sy, const double* sz, const
 ///   a/G      = -m D^3 r + 3 D^5 (M r) + (3/2) D^5 tr M r - (15/2) D^7 (r.M.r) r
 /// The accumulated values follow the sign convention of p2p (a/(-G), phi/(-G)).
 /// q points to 6 arrays: Mxx, Mxy, Mxz, Myy, Myz, Mzz, each of length n.
-void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm,
-                    const double* qxx, const double* qxy, const double* qxz, const double* qyy,
-                    const double* qyz, const double* qzz, std::size_t n, double xi, double yi,
-                    double zi, double eps2, Accum& acc);
+void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
+                    const double* qxy, const double* qxz, const double* qyy, const double* qyz, const double* qzz,
+                    std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc);
 
 }  // namespace rubble::gravity::detail

@@ -14,9 +14,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 /// Spreads the low 21 bits of v so that bit b moves to bit 3b (Morton interleaving by the usual
 /// shift-and-mask sequence).
@@ -78,12 +76,11 @@ inline double dist2_point_box(double px, double py, double pz, const std::array<
 /// Per-thread scratch for one group: the interaction lists, gathered as structure of arrays so
 /// that the kernels run unit-stride over sources.
 struct GroupBuffers {
-  std::vector<double> px, py, pz, pm;                         // P2P sources (and monopole cells)
+  std::vector<double> px, py, pz, pm;                          // P2P sources (and monopole cells)
   std::vector<double> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
   std::vector<std::uint32_t> stack;
   void clear() {
-    for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz})
-      v->clear();
+    for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz}) v->clear();
     stack.clear();
   }
 };
@@ -114,8 +111,7 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
   const auto t0 = Clock::now();
   validate_particles(GravityOptions{}, positions, masses);
   const std::size_t n = masses.size();
-  if (n > std::numeric_limits<std::uint32_t>::max() / 2)
-    throw GravityError("Tree: too many particles (limit 2^31)");
+  if (n > std::numeric_limits<std::uint32_t>::max() / 2) throw GravityError("Tree: too many particles (limit 2^31)");
   nodes_.clear();
   second_moments_.clear();
   groups_.clear();
@@ -199,8 +195,8 @@ double Tree::refit(std::span<const double> positions, std::span<const double> ma
   const auto t0 = Clock::now();
   validate_particles(GravityOptions{}, positions, masses);
   if (masses.size() != order_.size())
-    throw GravityError("Tree::refit: particle count differs from the last build (" +
-                       std::to_string(masses.size()) + " vs " + std::to_string(order_.size()) + ")");
+    throw GravityError("Tree::refit: particle count differs from the last build (" + std::to_string(masses.size()) +
+                       " vs " + std::to_string(order_.size()) + ")");
   load_particles(positions, masses);
   compute_moments();
   collect_groups();  // same ranges, new boxes
@@ -360,14 +356,11 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   const auto t0 = Clock::now();
   const std::size_t n = order_.size();
   if (options.order != 1 && options.order != 2)
-    throw GravityError("Tree: order must be 1 (monopole) or 2 (quadrupole), got " +
-                       std::to_string(options.order));
+    throw GravityError("Tree: order must be 1 (monopole) or 2 (quadrupole), got " + std::to_string(options.order));
   if (!(options.theta > 0) || !std::isfinite(options.theta))
     throw GravityError("Tree: theta must be a finite number > 0");
-  if (accelerations.size() != 3 * n)
-    throw GravityError("Tree: accelerations must hold 3N values");
-  if (!potential.empty() && potential.size() != n)
-    throw GravityError("Tree: potential must be empty or hold N values");
+  if (accelerations.size() != 3 * n) throw GravityError("Tree: accelerations must hold 3N values");
+  if (!potential.empty() && potential.size() != n) throw GravityError("Tree: potential must be empty or hold N values");
   stats_ = Stats{};
   stats_.nodes = nodes_.size();
   stats_.leaves = static_cast<std::size_t>(
@@ -447,12 +440,12 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
       m2p_total += static_cast<std::uint64_t>(nc) * g.count;
       for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
         detail::Accum acc;
-        detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np,
-                                x_[k], y_[k], z_[k], eps2, acc);
+        detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k], z_[k],
+                                eps2, acc);
         if (nc > 0)
-          detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(),
-                                 buf.xx.data(), buf.xy.data(), buf.xz.data(), buf.yy.data(),
-                                 buf.yz.data(), buf.zz.data(), nc, x_[k], y_[k], z_[k], eps2, acc);
+          detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(), buf.xx.data(),
+                                 buf.xy.data(), buf.xz.data(), buf.yy.data(), buf.yz.data(), buf.zz.data(), nc, x_[k],
+                                 y_[k], z_[k], eps2, acc);
         // The target's own leaf is always opened (it is within b_max of the node's centre), so
         // with softening its self term m_k / eps is in acc.phi: remove it.
         if (eps2 > 0) acc.phi -= m_[k] / eps;

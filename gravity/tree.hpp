@@ -26,23 +26,23 @@ class Tree {
  public:
   /// One octree node. Children of a node are contiguous in the node array, after their parent.
   struct Node {
-    double cx = 0, cy = 0, cz = 0;  ///< centre of mass [m] (box centre if the mass is zero)
-    double mass = 0;                ///< total mass [kg]
-    double bmax = 0;                ///< upper bound of |x_k - c| over the node's particles [m]
-    double size = 0;                ///< longest side of the tight bounding box [m]
-    double delta = 0;               ///< distance from the centre of mass to the box centre [m]
+    double cx = 0, cy = 0, cz = 0;     ///< centre of mass [m] (box centre if the mass is zero)
+    double mass = 0;                   ///< total mass [kg]
+    double bmax = 0;                   ///< upper bound of |x_k - c| over the node's particles [m]
+    double size = 0;                   ///< longest side of the tight bounding box [m]
+    double delta = 0;                  ///< distance from the centre of mass to the box centre [m]
     std::array<double, 3> lo{}, hi{};  ///< tight bounding box of the node's particles [m]
-    std::uint32_t begin = 0;        ///< first particle (in sorted order)
-    std::uint32_t count = 0;        ///< number of particles
-    std::int32_t first_child = -1;  ///< index of the first child, -1 for a leaf
-    std::int32_t num_children = 0;  ///< number of (non-empty) children, 0 for a leaf
+    std::uint32_t begin = 0;           ///< first particle (in sorted order)
+    std::uint32_t count = 0;           ///< number of particles
+    std::int32_t first_child = -1;     ///< index of the first child, -1 for a leaf
+    std::int32_t num_children = 0;     ///< number of (non-empty) children, 0 for a leaf
   };
 
   /// Work counters of the last evaluate() (summed over targets).
   struct Stats {
-    std::size_t nodes = 0;             ///< nodes in the tree
-    std::size_t leaves = 0;            ///< leaf nodes
-    std::size_t groups = 0;            ///< target groups walked
+    std::size_t nodes = 0;                    ///< nodes in the tree
+    std::size_t leaves = 0;                   ///< leaf nodes
+    std::size_t groups = 0;                   ///< target groups walked
     std::uint64_t particle_interactions = 0;  ///< target-particle pairs (P2P)
     std::uint64_t cell_interactions = 0;      ///< target-node multipole evaluations (M2P)
   };
@@ -60,8 +60,7 @@ class Tree {
 
   /// Field of all particles on all particles (self excluded) with options.theta, options.order,
   /// options.softening and options.G. accelerations: 3N, potential: N or empty. Returns seconds.
-  double evaluate(const GravityOptions& options, std::span<double> accelerations,
-                  std::span<double> potential) const;
+  double evaluate(const GravityOptions& options, std::span<double> accelerations, std::span<double> potential) const;
 
   /// Number of particles of the last build().
   std::size_t size() const { return order_.size(); }
@@ -80,8 +79,8 @@ class Tree {
 
   int leaf_size_;
   int group_size_;
-  std::vector<std::uint32_t> order_;       // sorted -> original index
-  std::vector<double> x_, y_, z_, m_;      // particles in Morton order (SoA)
+  std::vector<std::uint32_t> order_;   // sorted -> original index
+  std::vector<double> x_, y_, z_, m_;  // particles in Morton order (SoA)
   std::vector<Node> nodes_;
   std::vector<std::array<double, 6>> second_moments_;  // Mxx Mxy Mxz Myy Myz Mzz per node
   /// Targets that walk the tree together: a contiguous range of sorted particles and its box.

@@ -28,7 +28,8 @@ void gather_rotations(const Model& model, const SweepPlan& plan, const ContactLi
     if (polyhedron || compliance == 0.0) continue;
     const double reduced = reduced_radius(model, a, b);
     out.rotation_of_point[p] = static_cast<std::uint32_t>(out.rotation.size());
-    out.rotation.push_back({compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, Vec3::Zero()});
+    out.rotation.push_back(
+        {compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, Vec3::Zero()});
   }
 }
 
@@ -97,8 +98,15 @@ CompactProblem gather_compact_problem(const Model& model, const State& state, co
     for (std::ptrdiff_t i = 0; i < n; ++i) {
       const auto p = static_cast<std::size_t>(i);
       const Contact& c = contacts[plan.order[p]];
-      out.points[p] = {c.frame, c.delassus, c.arm_a, c.arm_b, c.impulse, c.friction_coefficient, c.normal_velocity_target,
-                       local[c.id.body_a], local[c.id.body_b]};
+      out.points[p] = {c.frame,
+                       c.delassus,
+                       c.arm_a,
+                       c.arm_b,
+                       c.impulse,
+                       c.friction_coefficient,
+                       c.normal_velocity_target,
+                       local[c.id.body_a],
+                       local[c.id.body_b]};
     }
   }
   if (model.contact_laws.any_resists_rotation()) gather_rotations(model, plan, contacts, out);

@@ -17,8 +17,8 @@ inline double tangential_norm(const Vec3& x) { return std::sqrt(x.y() * x.y() + 
 inline Vec3 project_onto_coulomb_cone(const Vec3& x, double mu) {
   const double normal = x.x();
   const double tangential = tangential_norm(x);
-  if (tangential <= mu * normal) return x;                          // inside K
-  if (mu * tangential <= -normal) return Vec3::Zero();              // inside the polar cone -K*
+  if (tangential <= mu * normal) return x;              // inside K
+  if (mu * tangential <= -normal) return Vec3::Zero();  // inside the polar cone -K*
   const double projected_normal = (normal + mu * tangential) / (1.0 + mu * mu);
   const double scale = mu * projected_normal / tangential;
   return Vec3(projected_normal, scale * x.y(), scale * x.z());

@@ -99,7 +99,8 @@ struct Reader {
       Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
       H5Tset_size(memory.get(), H5T_VARIABLE);
       char* value = nullptr;
-      if (H5Dread(dataset.get(), memory.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0 || value == nullptr) return "";
+      if (H5Dread(dataset.get(), memory.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0 || value == nullptr)
+        return "";
       std::string result(value);
       H5free_memory(value);
       return result;
@@ -114,8 +115,9 @@ struct Reader {
 
 /// Builds the CSR form from (row, column, value) entries: sorted by row then column, duplicates summed.
 SparseMatrix compress_rows(int rows, int columns, std::vector<std::tuple<int, int, double>> entries) {
-  std::sort(entries.begin(), entries.end(),
-            [](const auto& a, const auto& b) { return std::tie(std::get<0>(a), std::get<1>(a)) < std::tie(std::get<0>(b), std::get<1>(b)); });
+  std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
+    return std::tie(std::get<0>(a), std::get<1>(a)) < std::tie(std::get<0>(b), std::get<1>(b));
+  });
   SparseMatrix W;
   W.rows = rows;
   W.columns = columns;
@@ -152,8 +154,8 @@ void check_pointers(const Reader& reader, const std::vector<std::int64_t>& p, st
   }
 }
 
-void write_dataset(hid_t location, const std::string& file, const std::string& path, hid_t file_type,
-                   hid_t memory_type, const void* data, hsize_t count) {
+void write_dataset(hid_t location, const std::string& file, const std::string& path, hid_t file_type, hid_t memory_type,
+                   const void* data, hsize_t count) {
   Handle space(H5Screate_simple(1, &count, nullptr), H5Sclose);
   Handle dataset(H5Dcreate2(location, path.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                  H5Dclose);
@@ -212,16 +214,17 @@ LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* 
   if (!reader.exists("/fclib_local")) reader.fail("/fclib_local", "missing group (not an FCLib local problem)");
 
   const std::int64_t spacedim = reader.exists("/fclib_local/spacedim") ? reader.scalar("/fclib_local/spacedim") : 3;
-  if (spacedim != 3) reader.fail("/fclib_local/spacedim", "expected 3 (3D contacts), found " + std::to_string(spacedim));
+  if (spacedim != 3)
+    reader.fail("/fclib_local/spacedim", "expected 3 (3D contacts), found " + std::to_string(spacedim));
 
   LocalProblem problem;
   problem.q = reader.doubles("/fclib_local/vectors/q");
   problem.mu = reader.doubles("/fclib_local/vectors/mu");
   const std::size_t contacts = problem.mu.size();
   if (problem.q.size() != 3 * contacts) {
-    reader.fail("/fclib_local/vectors/q", "expected 3 x " + std::to_string(contacts) + " (contacts in mu) = " +
-                                              std::to_string(3 * contacts) + " entries, found " +
-                                              std::to_string(problem.q.size()));
+    reader.fail("/fclib_local/vectors/q", "expected 3 x " + std::to_string(contacts) +
+                                              " (contacts in mu) = " + std::to_string(3 * contacts) +
+                                              " entries, found " + std::to_string(problem.q.size()));
   }
   for (std::size_t k = 0; k < contacts; ++k) {
     if (problem.mu[k] < 0.0) reader.fail("/fclib_local/vectors/mu", "entry " + std::to_string(k) + " is negative");
@@ -240,7 +243,8 @@ LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* 
   const std::vector<std::int64_t> i = reader.integers("/fclib_local/W/i");
   const std::vector<double> x = reader.doubles("/fclib_local/W/x");
   if (i.size() != x.size()) {
-    reader.fail("/fclib_local/W/i", "i has " + std::to_string(i.size()) + " entries but x has " + std::to_string(x.size()));
+    reader.fail("/fclib_local/W/i",
+                "i has " + std::to_string(i.size()) + " entries but x has " + std::to_string(x.size()));
   }
 
   std::vector<std::tuple<int, int, double>> entries;
@@ -268,7 +272,8 @@ LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* 
     storage = SparseStorage::triplet;
     const auto count = static_cast<std::size_t>(nz);
     if (i.size() < count || p.size() < count) {
-      reader.fail("/fclib_local/W", "triplet form with nz = " + std::to_string(nz) + " needs that many entries in i, p and x, found " +
+      reader.fail("/fclib_local/W", "triplet form with nz = " + std::to_string(nz) +
+                                        " needs that many entries in i, p and x, found " +
                                         std::to_string(std::min(i.size(), p.size())));
     }
     for (std::size_t e = 0; e < count; ++e) {
@@ -277,8 +282,8 @@ LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* 
       entries.emplace_back(static_cast<int>(i[e]), static_cast<int>(p[e]), x[e]);
     }
   } else {
-    reader.fail("/fclib_local/W/nz", "expected -2 (compressed row), -1 (compressed column) or >= 0 (triplet), found " +
-                                         std::to_string(nz));
+    reader.fail("/fclib_local/W/nz",
+                "expected -2 (compressed row), -1 (compressed column) or >= 0 (triplet), found " + std::to_string(nz));
   }
   problem.W = compress_rows(static_cast<int>(m), static_cast<int>(n), std::move(entries));
   if (info != nullptr) {
@@ -311,8 +316,10 @@ void write_fclib_local(const std::filesystem::path& file, const LocalProblem& pr
     i.resize(W.value.size());
     x.resize(W.value.size());
     for (int row = 0; row < W.rows; ++row) {
-      for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1]; ++e) {
-        const auto slot = static_cast<std::size_t>(next[static_cast<std::size_t>(W.column[static_cast<std::size_t>(e)])]++);
+      for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1];
+           ++e) {
+        const auto slot =
+            static_cast<std::size_t>(next[static_cast<std::size_t>(W.column[static_cast<std::size_t>(e)])]++);
         i[slot] = row;
         x[slot] = W.value[static_cast<std::size_t>(e)];
       }
@@ -320,7 +327,8 @@ void write_fclib_local(const std::filesystem::path& file, const LocalProblem& pr
   } else {
     nz = static_cast<std::int32_t>(W.value.size());
     for (int row = 0; row < W.rows; ++row) {
-      for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1]; ++e) {
+      for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1];
+           ++e) {
         i.push_back(row);
         p.push_back(W.column[static_cast<std::size_t>(e)]);
         x.push_back(W.value[static_cast<std::size_t>(e)]);
@@ -345,7 +353,8 @@ void write_fclib_local(const std::filesystem::path& file, const LocalProblem& pr
   write_text(f, name, "/fclib_local/info/title", title);
 }
 
-void write_fclib_solution(const std::filesystem::path& file, const std::vector<double>& r, const std::vector<double>& u) {
+void write_fclib_solution(const std::filesystem::path& file, const std::vector<double>& r,
+                          const std::vector<double>& u) {
   const QuietHdf5 quiet;
   const Handle handle = create_file(file);
   write_doubles(handle.get(), file.string(), "r", r);

@@ -30,8 +30,8 @@ enum class SparseStorage {
 
 /// What an FCLib file holds besides the problem itself.
 struct FclibFileInfo {
-  std::string title;        ///< /fclib_local/info/title ("" when absent)
-  std::string description;  ///< /fclib_local/info/description ("" when absent)
+  std::string title;                                      ///< /fclib_local/info/title ("" when absent)
+  std::string description;                                ///< /fclib_local/info/description ("" when absent)
   SparseStorage storage = SparseStorage::compressed_row;  ///< how W was stored
 };
 

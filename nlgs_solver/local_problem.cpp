@@ -20,8 +20,10 @@ std::vector<double> velocities(const LocalProblem& p, const std::vector<double>&
   std::vector<double> u(p.q);
   for (int row = 0; row < p.W.rows; ++row) {
     double sum = 0.0;
-    for (int k = p.W.row_start[static_cast<std::size_t>(row)]; k < p.W.row_start[static_cast<std::size_t>(row) + 1]; ++k) {
-      sum += p.W.value[static_cast<std::size_t>(k)] * r[static_cast<std::size_t>(p.W.column[static_cast<std::size_t>(k)])];
+    for (int k = p.W.row_start[static_cast<std::size_t>(row)]; k < p.W.row_start[static_cast<std::size_t>(row) + 1];
+         ++k) {
+      sum +=
+          p.W.value[static_cast<std::size_t>(k)] * r[static_cast<std::size_t>(p.W.column[static_cast<std::size_t>(k)])];
     }
     u[static_cast<std::size_t>(row)] += sum;
   }
@@ -140,8 +142,8 @@ double alart_curnier(const LocalProblem& p, const std::vector<double>& rho, cons
 
 /// What one polish attempt did.
 struct PolishResult {
-  int iterations = 0;       ///< Newton steps taken
-  bool improved = false;    ///< r holds a better iterate (lower FCLib error) than on entry
+  int iterations = 0;     ///< Newton steps taken
+  bool improved = false;  ///< r holds a better iterate (lower FCLib error) than on entry
 };
 
 /// One damped Gauss-Newton (Levenberg-Marquardt) step on the Alart-Curnier function at r:
@@ -185,8 +187,8 @@ PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& opt
   const std::vector<double> rho = normal_scalings(p);
   std::vector<double> trial_r(m), trial_u(m), scratch;
   double best_error = error;
-  std::vector<double> best_r = r, best_u = u;            // lowest FCLib error (the output)
-  std::vector<double> anchor_r = r, anchor_u = u;        // lowest psi (the watchdog's fallback)
+  std::vector<double> best_r = r, best_u = u;      // lowest FCLib error (the output)
+  std::vector<double> anchor_r = r, anchor_u = u;  // lowest psi (the watchdog's fallback)
   double anchor_psi = std::numeric_limits<double>::infinity();
   int nonmonotone_steps = 0;
   double damping = options.polish_initial_damping;
@@ -280,7 +282,8 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
     for (int e = problem.W.row_start[row]; e < problem.W.row_start[row + 1]; ++e) {
       const auto column = static_cast<std::size_t>(problem.W.column[static_cast<std::size_t>(e)]);
       if (column / 3 == row / 3) {
-        explicit_problem.diagonal_blocks[row / 3](static_cast<Eigen::Index>(row % 3), static_cast<Eigen::Index>(column % 3)) =
+        explicit_problem.diagonal_blocks[row / 3](static_cast<Eigen::Index>(row % 3),
+                                                  static_cast<Eigen::Index>(column % 3)) =
             problem.W.value[static_cast<std::size_t>(e)];
       }
     }
@@ -317,7 +320,8 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
         break;
       }
       if (polish.improved) {
-        for (std::size_t k = 0; k < n; ++k) explicit_problem.r[k] = Vec3(solution.r[3 * k], solution.r[3 * k + 1], solution.r[3 * k + 2]);
+        for (std::size_t k = 0; k < n; ++k)
+          explicit_problem.r[k] = Vec3(solution.r[3 * k], solution.r[3 * k + 1], solution.r[3 * k + 2]);
       }
       next_polish *= 2;
     }

@@ -12,18 +12,18 @@ namespace rubble {
 
 /// W in compressed sparse row form (3 rows per contact, ordered normal, t, s).
 struct SparseMatrix {
-  int rows = 0;                       ///< number of rows (3 * contacts)
-  int columns = 0;                    ///< number of columns (3 * contacts)
-  std::vector<int> row_start;         ///< rows + 1 offsets into column/value
-  std::vector<int> column;            ///< column index of each stored value
-  std::vector<double> value;          ///< stored values
+  int rows = 0;                ///< number of rows (3 * contacts)
+  int columns = 0;             ///< number of columns (3 * contacts)
+  std::vector<int> row_start;  ///< rows + 1 offsets into column/value
+  std::vector<int> column;     ///< column index of each stored value
+  std::vector<double> value;   ///< stored values
 };
 
 /// A local frictional contact problem: u = W r + q, per contact K_mu ∋ r ⊥ û ∈ K_mu*.
 struct LocalProblem {
-  SparseMatrix W;                     ///< Delassus operator
-  std::vector<double> q;              ///< 3 * contacts
-  std::vector<double> mu;             ///< friction coefficient per contact
+  SparseMatrix W;          ///< Delassus operator
+  std::vector<double> q;   ///< 3 * contacts
+  std::vector<double> mu;  ///< friction coefficient per contact
   /// Number of contacts.
   std::size_t contact_count() const { return mu.size(); }
 };
@@ -40,30 +40,30 @@ enum class PolishMethod {
 
 /// Options of the file-backed solve (the simulation's SolverOptions plus an order and a polish).
 struct LocalProblemOptions {
-  double tolerance = 1e-8;            ///< on the FCLib error ||F||/||q|| (rho = 1)
-  int max_iterations = 10000;         ///< sweeps at most
-  double relaxation = 1.0;            ///< omega
+  double tolerance = 1e-8;                   ///< on the FCLib error ||F||/||q|| (rho = 1)
+  int max_iterations = 10000;                ///< sweeps at most
+  double relaxation = 1.0;                   ///< omega
   SweepOrder order = SweepOrder::as_stored;  ///< contact order within a sweep
-  std::uint64_t seed = 1;             ///< for SweepOrder::shuffled (one shuffle, reused every sweep)
+  std::uint64_t seed = 1;                    ///< for SweepOrder::shuffled (one shuffle, reused every sweep)
   PolishMethod polish = PolishMethod::none;  ///< none keeps the plain NLGS
   /// Sweeps before the first polish attempt; if it does not reach the tolerance, sweeping resumes
   /// and the next attempt comes after twice as many sweeps (so a failing polish costs at most
   /// about as much as the sweeps themselves).
   int polish_after = 20;
-  int polish_iterations = 30;         ///< Newton (LM) steps per attempt at most
+  int polish_iterations = 30;  ///< Newton (LM) steps per attempt at most
   /// Levenberg-Marquardt damping of the first step, relative to the mean diagonal of J^T J.
   double polish_initial_damping = 1e-4;
 };
 
 /// Result of a file-backed solve.
 struct LocalProblemSolution {
-  std::vector<double> r;              ///< 3 * contacts
-  std::vector<double> u;              ///< 3 * contacts
-  int iterations = 0;                 ///< sweeps done
-  int newton_iterations = 0;          ///< polish steps done (all attempts)
-  int polish_attempts = 0;            ///< polish attempts started
-  double error = 0.0;                 ///< ||F(r)|| / ||q||, natural map with rho = 1 (FCLib measure)
-  bool converged = false;             ///< error <= tolerance
+  std::vector<double> r;      ///< 3 * contacts
+  std::vector<double> u;      ///< 3 * contacts
+  int iterations = 0;         ///< sweeps done
+  int newton_iterations = 0;  ///< polish steps done (all attempts)
+  int polish_attempts = 0;    ///< polish attempts started
+  double error = 0.0;         ///< ||F(r)|| / ||q||, natural map with rho = 1 (FCLib measure)
+  bool converged = false;     ///< error <= tolerance
 };
 
 /// Newton polish of an iterate: Levenberg-Marquardt steps on the Alart-Curnier function from r

@@ -84,10 +84,12 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
     const double compliance_rate = -mu * (W(0, 1) * turned.x() + W(0, 2) * turned.y());
     const double r_n = c.impulse.x();
     const double r_n_rate = -r_n * compliance_rate / compliance;
-    const Vec3 impulse_rate(r_n_rate, -mu * (r_n_rate * d.x() + r_n * turned.x()), -mu * (r_n_rate * d.y() + r_n * turned.y()));
+    const Vec3 impulse_rate(r_n_rate, -mu * (r_n_rate * d.x() + r_n * turned.x()),
+                            -mu * (r_n_rate * d.y() + r_n * turned.y()));
     const Vec3 velocity_rate = W * impulse_rate;
     const double value = cross(c.tangential_velocity, d);
-    const double derivative = cross(Vec2(velocity_rate.y(), velocity_rate.z()), d) + cross(c.tangential_velocity, turned);
+    const double derivative =
+        cross(Vec2(velocity_rate.y(), velocity_rate.z()), d) + cross(c.tangential_velocity, turned);
     if (!std::isfinite(derivative) || derivative == 0.0) break;
     const double correction = std::clamp(value / derivative, -0.5, 0.5);
     d = (d - correction * turned).normalized();

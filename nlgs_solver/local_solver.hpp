@@ -6,7 +6,7 @@ namespace rubble {
 
 /// Result of the local solve.
 struct LocalSolution {
-  Vec3 impulse = Vec3::Zero();  ///< r = (r_n, r_t, r_s)
+  Vec3 impulse = Vec3::Zero();                                          ///< r = (r_n, r_t, r_s)
   enum class Regime { open, sticking, sliding } regime = Regime::open;  ///< which branch of the law holds
 };
 

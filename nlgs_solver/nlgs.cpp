@@ -95,15 +95,15 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   int next_polish = options.polish_after;
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
-    const SweepResult sweep =
-        plain ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
-              : planned_sweep(extended, plan, positions, options.relaxation, parallel, groups);
+    const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
+                                    : planned_sweep(extended, plan, positions, options.relaxation, parallel, groups);
     if (parallel) {
       double work = 0.0;
       for (const double t : groups.seconds) work += t;
       if (std::chrono::duration<double>(Clock::now() - sweep_start).count() > work) parallel = false;
     }
-    if (std::sqrt(sweep.residual_squared) <= options.tolerance * std::sqrt(scale.closing_squared + sweep.impulse_squared)) {
+    if (std::sqrt(sweep.residual_squared) <=
+        options.tolerance * std::sqrt(scale.closing_squared + sweep.impulse_squared)) {
       stats.converged = true;
       break;
     }
@@ -141,7 +141,8 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
       const CompactProblem::Point& point = compact.points[p];
       const Vec3& r = point.impulse;
       group_residual[g] +=
-          natural_map(r, compact.full_local_velocity(p), point.friction_coefficient, point.delassus(0, 0)).squaredNorm();
+          natural_map(r, compact.full_local_velocity(p), point.friction_coefficient, point.delassus(0, 0))
+              .squaredNorm();
       group_impulse[g] += (point.delassus(0, 0) * r).squaredNorm();
       const auto [spin_residual, spin_impulse] = compact.rotation_residual(p);
       group_residual[g] += spin_residual;
@@ -165,8 +166,8 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
 
 }  // namespace
 
-SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
-                           ContactList& contacts, BodyVelocities& velocity) {
+SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
+                           BodyVelocities& velocity) {
   // No polish with rolling or twisting resistance or tangential restitution: the polish knows the
   // Signorini-Coulomb-Newton law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&

@@ -17,10 +17,10 @@ namespace rubble {
 
 /// Settings of the NLGS solver.
 struct SolverOptions {
-  double tolerance = 1e-4;       ///< stop when the sweep residual (see nlgs_solver/README.md) is below this
-  int max_iterations = 1000;     ///< sweeps at most
-  double relaxation = 1.0;       ///< omega in (0, 2): r <- omega r_local + (1 - omega) r_old
-  bool warm_start = true;        ///< start from last step's impulses of persistent contacts
+  double tolerance = 1e-4;    ///< stop when the sweep residual (see nlgs_solver/README.md) is below this
+  int max_iterations = 1000;  ///< sweeps at most
+  double relaxation = 1.0;    ///< omega in (0, 2): r <- omega r_local + (1 - omega) r_old
+  bool warm_start = true;     ///< start from last step's impulses of persistent contacts
   /// The position-level recovery of overlaps left at the end of the step (overlap_recovery.hpp):
   /// it moves positions only, so it creates no kinetic energy.
   OverlapRecoveryOptions overlap_recovery{};
@@ -29,7 +29,7 @@ struct SolverOptions {
   /// Gauss-Seidel crawls on hyperstatic stacks (four points per face) and its error then carries
   /// over from step to step; the polish ends that. 0 disables it.
   int polish_after = 40;
-  int polish_iterations = 20;        ///< Newton (Levenberg-Marquardt) steps per attempt at most
+  int polish_iterations = 20;  ///< Newton (Levenberg-Marquardt) steps per attempt at most
   /// Larger problems are not polished: the sparse factorisation of a compact 3D aggregate fills
   /// in like a 3D mesh (measured: 13-78 s a polish at 5 800 polyhedron contact points, against
   /// 0.07 s for 40 sweeps), so the polish is for stacks and small piles.
@@ -46,11 +46,11 @@ struct SolverOptions {
 
 /// What one solve did, for the step's report.
 struct SolverStats {
-  int iterations = 0;          ///< sweeps done
-  double residual = 0.0;       ///< natural-map residual ||F|| / ||q_closing|| at exit (see README)
-  bool converged = false;      ///< residual <= tolerance within max_iterations
-  int polish_attempts = 0;     ///< Newton polishes started (see SolverOptions::polish_after)
-  int newton_iterations = 0;   ///< Newton steps taken by those polishes
+  int iterations = 0;               ///< sweeps done
+  double residual = 0.0;            ///< natural-map residual ||F|| / ||q_closing|| at exit (see README)
+  bool converged = false;           ///< residual <= tolerance within max_iterations
+  int polish_attempts = 0;          ///< Newton polishes started (see SolverOptions::polish_after)
+  int newton_iterations = 0;        ///< Newton steps taken by those polishes
   std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
 };
 
@@ -82,7 +82,7 @@ void prepare_contacts(const Model& model, const State& state, const BodyVelociti
 /// Solves for the contact impulses and updates `velocity` (which holds the free velocity on
 /// entry and v_{n+1} = v_free + M^-1 H r on exit). Contacts hold warm-start impulses on entry.
 /// In nlgs.cpp: warm start, sweeps until converged (with Newton polishes, polish.cpp), final residual.
-SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options,
-                           ContactList& contacts, BodyVelocities& velocity);
+SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
+                           BodyVelocities& velocity);
 
 }  // namespace rubble

@@ -11,8 +11,8 @@ namespace {
 struct Row {
   std::size_t a = 0, b = 0;
   Vec3 normal;
-  Vec3 turn_a, turn_b;  ///< world I^-1 (arm x n): angular pseudo-velocity per unit normal impulse
-  Vec3 lever_a, lever_b;  ///< arm x n: rate of the normal gap per unit angular velocity
+  Vec3 turn_a, turn_b;             ///< world I^-1 (arm x n): angular pseudo-velocity per unit normal impulse
+  Vec3 lever_a, lever_b;           ///< arm x n: rate of the normal gap per unit angular velocity
   double normal_compliance = 0.0;  ///< W_nn
   double target = 0.0;             ///< c: the pseudo normal velocity asked for
   double impulse = 0.0;            ///< p >= 0
@@ -69,8 +69,12 @@ OverlapRecoveryStats recover_overlaps(const Model& model, const State& state, co
     row.normal = c.frame.col(0);
     row.lever_a = c.arm_a.cross(row.normal);
     row.lever_b = c.arm_b.cross(row.normal);
-    row.turn_a = model.is_fixed(row.a) ? Vec3::Zero() : Vec3(world_inverse_inertia(model, row.a, state.orientation[row.a]) * row.lever_a);
-    row.turn_b = model.is_fixed(row.b) ? Vec3::Zero() : Vec3(world_inverse_inertia(model, row.b, state.orientation[row.b]) * row.lever_b);
+    row.turn_a = model.is_fixed(row.a)
+                     ? Vec3::Zero()
+                     : Vec3(world_inverse_inertia(model, row.a, state.orientation[row.a]) * row.lever_a);
+    row.turn_b = model.is_fixed(row.b)
+                     ? Vec3::Zero()
+                     : Vec3(world_inverse_inertia(model, row.b, state.orientation[row.b]) * row.lever_b);
     row.normal_compliance = c.delassus(0, 0);
     row.target = excess[k] > 0.0 ? std::min(options.fraction * excess[k] / h, options.max_velocity) : excess[k] / h;
   }

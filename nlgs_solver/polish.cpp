@@ -55,15 +55,18 @@ std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
     const double sk = side(ck, body, arm_k);
     for (const std::size_t l : of_body[body]) {
       const double sl = side(view.at(l), body, arm_l);
-      const Mat3 compliance = moving.inverse_mass * Mat3::Identity() - skew(arm_k) * moving.inverse_inertia * skew(arm_l);
+      const Mat3 compliance =
+          moving.inverse_mass * Mat3::Identity() - skew(arm_k) * moving.inverse_inertia * skew(arm_l);
       row.emplace_back(l, sk * sl * compliance);
     }
   }
   std::sort(row.begin(), row.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   std::vector<std::pair<std::size_t, Mat3>> merged;
   for (const auto& [l, m] : row) {
-    if (!merged.empty() && merged.back().first == l) merged.back().second += m;
-    else merged.emplace_back(l, m);
+    if (!merged.empty() && merged.back().first == l)
+      merged.back().second += m;
+    else
+      merged.emplace_back(l, m);
   }
   return merged;
 }
@@ -116,7 +119,7 @@ std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<dou
 }  // namespace
 
 PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
-                                    double tolerance) {
+                                     double tolerance) {
   PolishView view{compact, std::vector<std::size_t>(order.size())};
   for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
   const std::size_t n = view.point.size();
@@ -142,8 +145,9 @@ PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const st
     for (std::size_t k = 0; k < n; ++k) {
       // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
       const std::size_t p = view.point[k];
-      const Vec3 next = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
-                                                  compact.points[p].friction_coefficient);
+      const Vec3 next =
+          project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
+                                    compact.points[p].friction_coefficient);
       const Vec3 delta = next - compact.points[p].impulse;
       compact.points[p].impulse = next;
       compact.apply_impulse_change(p, delta);

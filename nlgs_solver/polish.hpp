@@ -25,6 +25,6 @@ struct PolishOutcome {
 /// updates, and the polish computed in it before it moved onto the compact copy (same results to
 /// the bit).
 PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
-                                    double tolerance);
+                                     double tolerance);
 
 }  // namespace rubble

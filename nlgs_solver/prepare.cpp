@@ -91,8 +91,9 @@ void prepare_contacts(const Model& model, const State& state, const BodyVelociti
                       const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts) {
   const std::vector<Mat3> inverse_inertia = world_inverse_inertias(model, state);
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(contacts.size());
-  const std::vector<double> cohesive_impulse =
-      model.contact_laws.any_cohesive() ? cohesive_impulses(model, contacts, integrator.time_step) : std::vector<double>();
+  const std::vector<double> cohesive_impulse = model.contact_laws.any_cohesive()
+                                                   ? cohesive_impulses(model, contacts, integrator.time_step)
+                                                   : std::vector<double>();
 #pragma omp parallel for schedule(static) if (n >= min_parallel_items)
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     Contact& c = contacts[static_cast<std::size_t>(i)];

@@ -31,7 +31,7 @@ std::uint64_t spread_bits(std::uint64_t x) {
 /// other in space mostly get near keys, so a sweep in key order reuses the bodies it just touched
 /// (cache) and a contiguous key range is a compact region (few contacts on its boundary).
 struct MortonGrid {
-  Vec3 lower = Vec3::Zero();   ///< the cube's lowest corner
+  Vec3 lower = Vec3::Zero();     ///< the cube's lowest corner
   double cells_per_metre = 0.0;  ///< 0 when every point is the same
 
   /// The Morton key of p (points outside the cube are clamped onto it).
@@ -73,9 +73,12 @@ std::size_t common_node(const std::vector<BlockNode>& nodes, std::size_t i, std:
   std::size_t node = 0;
   while (nodes[node].last - nodes[node].first > 1) {
     const std::size_t middle = nodes[nodes[node].left].last;
-    if (i < middle && j < middle) node = nodes[node].left;
-    else if (i >= middle && j >= middle) node = nodes[node].right;
-    else break;
+    if (i < middle && j < middle)
+      node = nodes[node].left;
+    else if (i >= middle && j >= middle)
+      node = nodes[node].right;
+    else
+      break;
   }
   return node;
 }
@@ -203,8 +206,10 @@ void order_contacts(const Model& model, const ContactList& contacts, const Morto
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
   for (std::ptrdiff_t g = 0; g < static_cast<std::ptrdiff_t>(nodes.size()); ++g) {
     const auto first = plan.order.begin() + static_cast<std::ptrdiff_t>(plan.group_start[static_cast<std::size_t>(g)]);
-    const auto last = plan.order.begin() + static_cast<std::ptrdiff_t>(plan.group_start[static_cast<std::size_t>(g) + 1]);
-    std::sort(first, last, [&](std::size_t x, std::size_t y) { return std::pair(point_key[x], x) < std::pair(point_key[y], y); });
+    const auto last =
+        plan.order.begin() + static_cast<std::ptrdiff_t>(plan.group_start[static_cast<std::size_t>(g) + 1]);
+    std::sort(first, last,
+              [&](std::size_t x, std::size_t y) { return std::pair(point_key[x], x) < std::pair(point_key[y], y); });
   }
 }
 

@@ -23,8 +23,8 @@ double ball_intersection_volume(double big_r, double r, double d) {
     return 4.0 / 3.0 * std::numbers::pi * small * small * small;
   }
   const double a = big_r + r - d;
-  return std::numbers::pi * a * a * (d * d + 2.0 * d * r - 3.0 * r * r + 2.0 * d * big_r + 6.0 * r * big_r - 3.0 * big_r * big_r) /
-         (12.0 * d);
+  return std::numbers::pi * a * a *
+         (d * d + 2.0 * d * r - 3.0 * r * r + 2.0 * d * big_r + 6.0 * r * big_r - 3.0 * big_r * big_r) / (12.0 * d);
 }
 
 bool carries_force(const Contact& contact, const ContactMetricsOptions& options) {
@@ -169,7 +169,8 @@ GrainMomenta grain_momenta(const Model& model, const State& state) {
     if (!model.is_grain(i)) continue;
     const Vec3 arm = state.position[i] - p.centre_of_mass;
     const Mat3 rotation = state.orientation[i].toRotationMatrix();
-    const Vec3 spin = rotation * model.principal_inertia[i].cwiseProduct(rotation.transpose() * state.angular_velocity[i]);
+    const Vec3 spin =
+        rotation * model.principal_inertia[i].cwiseProduct(rotation.transpose() * state.angular_velocity[i]);
     p.angular += model.mass[i] * arm.cross(state.velocity[i]) + spin;
   }
   return p;
@@ -270,7 +271,8 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
                rotation * model.principal_inertia[i].asDiagonal() * rotation.transpose();
   }
   if (total_mass > 0.0) {
-    const Vec3 moments = Eigen::SelfAdjointEigenSolver<Mat3>(inertia, Eigen::EigenvaluesOnly).eigenvalues();  // ascending
+    const Vec3 moments =
+        Eigen::SelfAdjointEigenSolver<Mat3>(inertia, Eigen::EigenvaluesOnly).eigenvalues();  // ascending
     for (int k = 0; k < 3; ++k) {
       // The smallest moment is about the longest axis; max(0, .) guards round-off for a chain.
       m.inertia_semi_axes[k] = std::sqrt(std::max(0.0, 5.0 * (moments.sum() - 2.0 * moments[k]) / (2.0 * total_mass)));
@@ -386,16 +388,52 @@ ImpulseHistogram normal_impulse_histogram(const ContactList& contacts, int bins,
 }
 
 std::vector<std::string> metrics_column_names() {
-  return {"time", "step", "grains", "kinetic_energy", "mean_kinetic_energy", "translational_energy",
-          "rotational_energy", "potential_energy", "total_energy", "linear_momentum_x", "linear_momentum_y",
-          "linear_momentum_z", "angular_momentum_x", "angular_momentum_y", "angular_momentum_z", "centre_of_mass_x",
-          "centre_of_mass_y", "centre_of_mass_z", "aggregate_diameter", "mean_diameter", "equivalent_diameter",
-          "grain_volume", "packing_fraction", "inner_packing_fraction", "inner_grains", "contact_points",
-          "force_bearing_points", "sliding_points", "sliding_fraction", "grain_contacts", "wall_contacts",
-          "coordination", "rattlers", "coordination_without_rattlers", "inner_coordination", "mean_normal_impulse",
-          "max_normal_impulse", "inertia_semi_axis_1", "inertia_semi_axis_2", "inertia_semi_axis_3",
-          "inertia_aspect_ratio", "inertia_diameter", "inertia_packing_fraction", "max_overlap",
-          "detached_grains", "escaping_grains"};
+  return {"time",
+          "step",
+          "grains",
+          "kinetic_energy",
+          "mean_kinetic_energy",
+          "translational_energy",
+          "rotational_energy",
+          "potential_energy",
+          "total_energy",
+          "linear_momentum_x",
+          "linear_momentum_y",
+          "linear_momentum_z",
+          "angular_momentum_x",
+          "angular_momentum_y",
+          "angular_momentum_z",
+          "centre_of_mass_x",
+          "centre_of_mass_y",
+          "centre_of_mass_z",
+          "aggregate_diameter",
+          "mean_diameter",
+          "equivalent_diameter",
+          "grain_volume",
+          "packing_fraction",
+          "inner_packing_fraction",
+          "inner_grains",
+          "contact_points",
+          "force_bearing_points",
+          "sliding_points",
+          "sliding_fraction",
+          "grain_contacts",
+          "wall_contacts",
+          "coordination",
+          "rattlers",
+          "coordination_without_rattlers",
+          "inner_coordination",
+          "mean_normal_impulse",
+          "max_normal_impulse",
+          "inertia_semi_axis_1",
+          "inertia_semi_axis_2",
+          "inertia_semi_axis_3",
+          "inertia_aspect_ratio",
+          "inertia_diameter",
+          "inertia_packing_fraction",
+          "max_overlap",
+          "detached_grains",
+          "escaping_grains"};
 }
 
 std::vector<double> metrics_row(const AggregateMetrics& m) {

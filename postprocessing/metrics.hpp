@@ -38,10 +38,10 @@ struct PotentialSettings {
     uniform,  ///< uniform field g: U = -sum_i m_i g . x_i
     self,     ///< self-gravity of point masses: U = -G sum_{i<j} m_i m_j / |x_i - x_j|
   };
-  Kind kind = Kind::none;                       ///< which gravity
-  Vec3 acceleration = Vec3::Zero();             ///< g, m/s^2, for Kind::uniform
-  double gravitational_constant = 6.674e-11;    ///< G, m^3 kg^-1 s^-2, for Kind::self
-  double softening = 0.0;                       ///< Plummer length eps, m (|x|^2 + eps^2 under the root)
+  Kind kind = Kind::none;                     ///< which gravity
+  Vec3 acceleration = Vec3::Zero();           ///< g, m/s^2, for Kind::uniform
+  double gravitational_constant = 6.674e-11;  ///< G, m^3 kg^-1 s^-2, for Kind::self
+  double softening = 0.0;                     ///< Plummer length eps, m (|x|^2 + eps^2 under the root)
 };
 
 /// Gravitational potential energy of the grains, J (see PotentialSettings). The self-energy of
@@ -71,9 +71,9 @@ GrainSizes grain_sizes(const Model& model);
 
 /// The metrics of one snapshot (docs/postprocessing.md gives each formula).
 struct AggregateMetrics {
-  double time = 0.0;       ///< s
-  std::int64_t step = 0;   ///< steps taken
-  std::int64_t grains = 0; ///< N_p, bodies that are grains (walls excluded)
+  double time = 0.0;        ///< s
+  std::int64_t step = 0;    ///< steps taken
+  std::int64_t grains = 0;  ///< N_p, bodies that are grains (walls excluded)
 
   // --- energies and momenta (grains only) ---
   double kinetic_energy = 0.0;          ///< J, sum of translation + rotation
@@ -83,42 +83,45 @@ struct AggregateMetrics {
   double potential_energy = 0.0;        ///< J, gravitational (PotentialSettings)
   double total_energy = 0.0;            ///< J, kinetic + potential
   Vec3 linear_momentum = Vec3::Zero();  ///< kg m/s, sum m v
-  Vec3 angular_momentum = Vec3::Zero(); ///< kg m^2/s, about the grains' centre of mass: sum m (x - x_cm) x v + R I R^T w
+  Vec3 angular_momentum =
+      Vec3::Zero();  ///< kg m^2/s, about the grains' centre of mass: sum m (x - x_cm) x v + R I R^T w
 
   // --- geometry ---
-  Vec3 centre_of_mass = Vec3::Zero();   ///< m, of the grains
+  Vec3 centre_of_mass = Vec3::Zero();  ///< m, of the grains
   /// D_max, m: diameter of the smallest sphere centred on x_cm that holds every grain whole,
   /// 2 max over grains of the farthest surface point from x_cm (|x_i - x_cm| + r_i for a sphere,
   /// the farthest vertex for a polyhedron).
   double aggregate_diameter = 0.0;
-  double mean_diameter = 0.0;           ///< <d> = mean circumscribed-sphere diameter (GrainSizes), m
-  double equivalent_diameter = 0.0;     ///< d* = mean of (6 V_i / pi)^(1/3), m
-  double grain_volume = 0.0;            ///< sum V_i, m^3
-  double packing_fraction = 0.0;        ///< nu = sum V_i / (pi D_max^3 / 6)
-  double inner_packing_fraction = 0.0;  ///< grain volume inside the sphere of diameter D_max/2 about x_cm, over its volume
-  std::int64_t inner_grains = 0;        ///< grains whose centre is inside that inner sphere
+  double mean_diameter = 0.0;        ///< <d> = mean circumscribed-sphere diameter (GrainSizes), m
+  double equivalent_diameter = 0.0;  ///< d* = mean of (6 V_i / pi)^(1/3), m
+  double grain_volume = 0.0;         ///< sum V_i, m^3
+  double packing_fraction = 0.0;     ///< nu = sum V_i / (pi D_max^3 / 6)
+  double inner_packing_fraction =
+      0.0;                        ///< grain volume inside the sphere of diameter D_max/2 about x_cm, over its volume
+  std::int64_t inner_grains = 0;  ///< grains whose centre is inside that inner sphere
   /// Semi-axes s_1 >= s_2 >= s_3 of the inertia-equivalent ellipsoid, m: the uniform solid
   /// ellipsoid with the grains' total mass M and inertia tensor I about x_cm (grains' own inertia
   /// included), s_i^2 = 5 (I_j + I_k - I_i) / (2 M) over the principal moments I_i.
   Vec3 inertia_semi_axes = Vec3::Zero();
-  double inertia_aspect_ratio = 0.0;        ///< s_1 / s_3, elongation of the aggregate (1 for a ball)
-  double inertia_diameter = 0.0;            ///< D_I = 2 (s_1 s_2 s_3)^(1/3), m: the sphere of the ellipsoid's volume
-  double inertia_packing_fraction = 0.0;    ///< nu_I = sum V_i / (4/3 pi s_1 s_2 s_3): bulk packing fraction of the aggregate
+  double inertia_aspect_ratio = 0.0;  ///< s_1 / s_3, elongation of the aggregate (1 for a ball)
+  double inertia_diameter = 0.0;      ///< D_I = 2 (s_1 s_2 s_3)^(1/3), m: the sphere of the ellipsoid's volume
+  double inertia_packing_fraction =
+      0.0;  ///< nu_I = sum V_i / (4/3 pi s_1 s_2 s_3): bulk packing fraction of the aggregate
 
   // --- contacts ---
-  std::int64_t contact_points = 0;          ///< contact points in the list (any impulse)
-  std::int64_t force_bearing_points = 0;    ///< points with r_n > threshold (grain-grain and grain-wall)
-  std::int64_t sliding_points = 0;          ///< force-bearing points whose status is sliding
-  double sliding_fraction = 0.0;            ///< sliding_points / force_bearing_points (0 if none)
-  std::int64_t grain_contacts = 0;          ///< N_c: grain pairs touching through >= 1 force-bearing point
-  std::int64_t wall_contacts = 0;           ///< grain-wall pairs touching through >= 1 force-bearing point
-  double coordination = 0.0;                ///< Z = 2 N_c / N_p
-  std::int64_t rattlers = 0;                ///< grains with fewer than 2 force-bearing contacts (walls count)
+  std::int64_t contact_points = 0;             ///< contact points in the list (any impulse)
+  std::int64_t force_bearing_points = 0;       ///< points with r_n > threshold (grain-grain and grain-wall)
+  std::int64_t sliding_points = 0;             ///< force-bearing points whose status is sliding
+  double sliding_fraction = 0.0;               ///< sliding_points / force_bearing_points (0 if none)
+  std::int64_t grain_contacts = 0;             ///< N_c: grain pairs touching through >= 1 force-bearing point
+  std::int64_t wall_contacts = 0;              ///< grain-wall pairs touching through >= 1 force-bearing point
+  double coordination = 0.0;                   ///< Z = 2 N_c / N_p
+  std::int64_t rattlers = 0;                   ///< grains with fewer than 2 force-bearing contacts (walls count)
   double coordination_without_rattlers = 0.0;  ///< Z' = 2 N_c' / N_p' over the non-rattlers
-  double inner_coordination = 0.0;          ///< mean grain-grain contacts of the inner grains (bulk Z)
-  double mean_normal_impulse = 0.0;         ///< N s, mean r_n over force-bearing points
-  double max_normal_impulse = 0.0;          ///< N s, largest r_n
-  double max_overlap = 0.0;                 ///< m, deepest interpenetration, max(0, -gap) over the contact points
+  double inner_coordination = 0.0;             ///< mean grain-grain contacts of the inner grains (bulk Z)
+  double mean_normal_impulse = 0.0;            ///< N s, mean r_n over force-bearing points
+  double max_normal_impulse = 0.0;             ///< N s, largest r_n
+  double max_overlap = 0.0;                    ///< m, deepest interpenetration, max(0, -gap) over the contact points
   /// Grains outside the largest cluster of the contact network (edges: the grain-grain contact
   /// points of the list, i.e. pairs within the detection's alert distance, any impulse).
   std::int64_t detached_grains = 0;
@@ -146,10 +149,10 @@ std::vector<int> grain_contact_counts(const Model& model, const ContactList& con
 /// Histogram of r_n / <r_n> over the force-bearing contact points: `bins` equal bins over
 /// [0, upper] (upper = max r_n / <r_n>, rounded up to an integer); empty if no point carries force.
 struct ImpulseHistogram {
-  std::vector<double> bin_lower;  ///< lower edge of each bin (in units of the mean)
-  std::vector<double> bin_upper;  ///< upper edge of each bin
-  std::vector<std::int64_t> count;///< points per bin
-  std::vector<double> density;    ///< probability density: count / (total * width)
+  std::vector<double> bin_lower;     ///< lower edge of each bin (in units of the mean)
+  std::vector<double> bin_upper;     ///< upper edge of each bin
+  std::vector<std::int64_t> count;   ///< points per bin
+  std::vector<double> density;       ///< probability density: count / (total * width)
   double mean_normal_impulse = 0.0;  ///< <r_n>, N s
 };
 /// The normal impulse distribution of one snapshot.

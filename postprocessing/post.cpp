@@ -107,7 +107,7 @@ bool run_plots(const std::string& mode, const std::string& arguments, const fs::
   const auto warn = [&](const std::string& what) {
     if (warnings != nullptr) {
       *warnings << "rubble post: warning: plots not drawn: " << what << " (the CSV and HDF5 files are written)\n"
-                        << std::flush;
+                << std::flush;
     }
     return false;
   };
@@ -170,8 +170,9 @@ void write_metrics_hdf5(const fs::path& path, const fs::path& run_file, const st
 /// Throws NonFiniteResult when a series row holds a non-finite time, energy or residual.
 void check_series(const fs::path& run_file, const RunSeries& series) {
   for (std::size_t k = 0; k < series.step.size(); ++k) {
-    for (const auto& [name, value] : {std::pair{"time", series.time[k]}, std::pair{"kinetic_energy", series.kinetic_energy[k]},
-                                      std::pair{"residual", series.residual[k]}}) {
+    for (const auto& [name, value] :
+         {std::pair{"time", series.time[k]}, std::pair{"kinetic_energy", series.kinetic_energy[k]},
+          std::pair{"residual", series.residual[k]}}) {
       if (!std::isfinite(value)) {
         throw NonFiniteResult(run_file.string() + ": /series row " + std::to_string(k) + " (step " +
                               std::to_string(series.step[k]) + "): " + name + " = " + number(value));
@@ -184,7 +185,7 @@ void check_series(const fs::path& run_file, const RunSeries& series) {
 /// velocity: every metric of it would be NaN.
 void check_snapshot(const fs::path& run_file, std::size_t index, const State& state) {
   for (std::size_t b = 0; b < state.body_count(); ++b) {
-    const char* what = !state.position[b].allFinite()              ? "position"
+    const char* what = !state.position[b].allFinite()               ? "position"
                        : !state.orientation[b].coeffs().allFinite() ? "orientation"
                        : !state.velocity[b].allFinite()             ? "velocity"
                        : !state.angular_velocity[b].allFinite()     ? "angular velocity"
@@ -218,7 +219,8 @@ fs::path plots_script() {
   std::error_code error;
   const fs::path program = fs::read_symlink("/proc/self/exe", error);
   if (!error) {
-    for (const fs::path& candidate : {program.parent_path() / "plots.py", program.parent_path() / ".." / "share" / "rubble" / "plots.py"}) {
+    for (const fs::path& candidate :
+         {program.parent_path() / "plots.py", program.parent_path() / ".." / "share" / "rubble" / "plots.py"}) {
       if (fs::is_regular_file(candidate, error)) return candidate.lexically_normal();
     }
   }
@@ -247,15 +249,21 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
   check_series(run_file, series);
   {
     const fs::path path = out / "series.csv";
-    std::vector<std::string> header{"step",           "time",       "kinetic_energy", "mean_kinetic_energy", "contacts",
-                                    "active_contacts", "iterations", "residual",       "wall_seconds"};
+    std::vector<std::string> header{
+        "step",       "time",     "kinetic_energy", "mean_kinetic_energy", "contacts", "active_contacts",
+        "iterations", "residual", "wall_seconds"};
     header.insert(header.end(), series.monitor_names.begin(), series.monitor_names.end());
     CsvWriter csv(path, header);
     for (std::size_t k = 0; k < series.step.size(); ++k) {
-      std::vector<double> row{static_cast<double>(series.step[k]), series.time[k], series.kinetic_energy[k],
+      std::vector<double> row{static_cast<double>(series.step[k]),
+                              series.time[k],
+                              series.kinetic_energy[k],
                               grains > 0 ? series.kinetic_energy[k] / static_cast<double>(grains) : 0.0,
-                              static_cast<double>(series.contacts[k]), static_cast<double>(series.active_contacts[k]),
-                              static_cast<double>(series.iterations[k]), series.residual[k], series.wall_seconds[k]};
+                              static_cast<double>(series.contacts[k]),
+                              static_cast<double>(series.active_contacts[k]),
+                              static_cast<double>(series.iterations[k]),
+                              series.residual[k],
+                              series.wall_seconds[k]};
       for (const std::vector<double>& column : series.monitor) row.push_back(column[k]);
       csv.row(row);
     }
@@ -318,7 +326,8 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
         if (fs::exists(out / png)) {
           written.push_back(out / png);
         } else if (options.warnings != nullptr) {
-          *options.warnings << "rubble post: warning: " << (out / png).string() << ": the plotting script did not write it\n";
+          *options.warnings << "rubble post: warning: " << (out / png).string()
+                            << ": the plotting script did not write it\n";
         }
       }
       if (fs::exists(out / "conservation.png")) written.push_back(out / "conservation.png");
@@ -496,7 +505,8 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       const RunSnapshot snapshot = reader->read_snapshot(k);
       check_snapshot(run, k, snapshot.state);
       const bool last = k + 1 == reader->snapshot_count();
-      all.push_back(compute_metrics(model, sizes, snapshot.state, snapshot.contacts, last ? potential : PotentialSettings{}));
+      all.push_back(
+          compute_metrics(model, sizes, snapshot.state, snapshot.contacts, last ? potential : PotentialSettings{}));
       check_metrics(run, k, metrics_row(all.back()));
     }
     r.end_time = all.back().time;
@@ -552,9 +562,10 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       left_out.push_back(r.path + " (" + why + ")");
       if (options.warnings != nullptr) {
         *options.warnings << "rubble post: study: " << r.path << " " << why << ": "
-                          << (options.include_unfinished ? "included (--include-unfinished), flagged in study.csv and the plots"
-                                                         : "flagged in study.csv, left out of the fits and plots "
-                                                           "(--include-unfinished includes it)")
+                          << (options.include_unfinished
+                                  ? "included (--include-unfinished), flagged in study.csv and the plots"
+                                  : "flagged in study.csv, left out of the fits and plots "
+                                    "(--include-unfinished includes it)")
                           << "\n";
       }
     }
@@ -573,11 +584,25 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   std::vector<fs::path> written;
   {
     const fs::path path = out / "study.csv";
-    std::vector<std::string> header{"run", "status", "reached_window", "included", "shape", "grains", "friction",
-                                    "window_start", "end_time", "averaged_over", "snapshots_used", "peak_time",
-                                    "peak_mean_kinetic_energy", "rest_time", "plateau_mean_kinetic_energy"};
+    std::vector<std::string> header{"run",
+                                    "status",
+                                    "reached_window",
+                                    "included",
+                                    "shape",
+                                    "grains",
+                                    "friction",
+                                    "window_start",
+                                    "end_time",
+                                    "averaged_over",
+                                    "snapshots_used",
+                                    "peak_time",
+                                    "peak_mean_kinetic_energy",
+                                    "rest_time",
+                                    "plateau_mean_kinetic_energy"};
     // Grain diameters do not change during a run: no spread column for them.
-    const auto has_spread = [](const std::string& name) { return name != "mean_diameter" && name != "equivalent_diameter"; };
+    const auto has_spread = [](const std::string& name) {
+      return name != "mean_diameter" && name != "equivalent_diameter";
+    };
     for (const auto& [name, field] : averaged) {
       header.push_back(name);
       if (has_spread(name)) header.push_back(name + "_spread");
@@ -629,7 +654,8 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
   // exponential y = a exp(b n_s), on log y, to weigh the paper's "exponential" against a power law.
   {
     const fs::path path = out / "study_fits.csv";
-    CsvWriter csv(path, {"shape", "friction", "quantity", "model", "prefactor", "exponent", "points", "rms_log_residual"});
+    CsvWriter csv(path,
+                  {"shape", "friction", "quantity", "model", "prefactor", "exponent", "points", "rms_log_residual"});
     std::vector<std::pair<std::string, double>> series;
     for (const StudyRun& r : study) {
       if (r.included && std::find(series.begin(), series.end(), std::pair{r.shape, r.friction}) == series.end()) {
@@ -686,15 +712,14 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
                   parameter_text(options.stable_after).c_str(), parameter_text(options.stable_after / 60.0).c_str());
     text << line.data();
     std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
-                  "shape", "n_s", "mu", "", "peak_min", "rest_min", "plateau_J", "Z", "Z_nr", "nu", "nu_I",
-                  "D/<d>", "D/d*", "overlap/d", "det", "esc");
+                  "shape", "n_s", "mu", "", "peak_min", "rest_min", "plateau_J", "Z", "Z_nr", "nu", "nu_I", "D/<d>",
+                  "D/d*", "overlap/d", "det", "esc");
     text << line.data();
     for (const StudyRun& r : study) {
       const std::string flag = std::string(r.reached_window ? "" : "*") + (r.at_rest ? "" : "!");
       std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
                     r.shape.c_str(), count_text(r.grains).c_str(), parameter_text(r.friction).c_str(), flag.c_str(),
-                    significant(r.peak_time / 60.0).c_str(),
-                    r.at_rest ? significant(r.rest_time / 60.0).c_str() : "-",
+                    significant(r.peak_time / 60.0).c_str(), r.at_rest ? significant(r.rest_time / 60.0).c_str() : "-",
                     r.reached_window ? significant(r.plateau).c_str() : "-",
                     significant(r.values.at("Z_max").mean).c_str(),
                     significant(r.values.at("Z_without_rattlers").mean).c_str(),
@@ -721,7 +746,8 @@ std::vector<fs::path> post_process_study(const std::vector<fs::path>& inputs, co
       if (fs::exists(out / png)) {
         written.push_back(out / png);
       } else if (options.warnings != nullptr) {
-        *options.warnings << "rubble post: warning: " << (out / png).string() << ": the plotting script did not write it\n";
+        *options.warnings << "rubble post: warning: " << (out / png).string()
+                          << ": the plotting script did not write it\n";
       }
     }
   }

@@ -55,8 +55,8 @@ struct PostOptions {
   PlotOptions plot{};                      ///< interpreter, script and warnings of the plots
   /// The figures drawn; unset: an aggregate for self-gravity (potential.kind), else a deposit.
   std::optional<SceneKind> scene_kind;
-  int histogram_bins = 20;                 ///< bins of the normal impulse distribution
-  std::ostream* log = nullptr;             ///< progress and the list of files written (nullptr: silent)
+  int histogram_bins = 20;      ///< bins of the normal impulse distribution
+  std::ostream* log = nullptr;  ///< progress and the list of files written (nullptr: silent)
   /// Notes that matter even when quiet (nullptr: nowhere): plots that cannot be drawn (no
   /// matplotlib, the script failed; the CSV and HDF5 files are written all the same and the
   /// command succeeds), a run file read while its run goes on.
@@ -77,8 +77,8 @@ struct StudyOptions {
   /// snapshot, flagged (study.csv reached_window = 0, averaged_over = final_snapshot) and left out
   /// of the fits and plots unless include_unfinished.
   double stable_after = 7500.0;
-  bool plots = true;             ///< draw the PNGs with plots.py
-  PlotOptions plot{};            ///< interpreter, script and warnings of the plots
+  bool plots = true;   ///< draw the PNGs with plots.py
+  PlotOptions plot{};  ///< interpreter, script and warnings of the plots
   /// Also fit and plot runs that did not end at rest (/run@status other than at_rest: stopped
   /// by a signal or a failure, killed, still running, ended at end_time before rest, or "unknown"
   /// in a format 1 file) or did not reach the window. They are always listed in study.csv, with
@@ -87,7 +87,7 @@ struct StudyOptions {
   /// The run's gravity, for the escape test of the last snapshot (AggregateMetrics::escaping_grains);
   /// unset: no gravity, no grain counted as escaping. `rubble post` reads it from the run's scene.
   std::function<PotentialSettings(const RunReader&)> potential_of;
-  std::ostream* log = nullptr;   ///< progress (nullptr: silent)
+  std::ostream* log = nullptr;       ///< progress (nullptr: silent)
   std::ostream* warnings = nullptr;  ///< as PostOptions::warnings
 };
 

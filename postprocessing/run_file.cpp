@@ -131,7 +131,8 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
     write_integers(hdf5::write_int64s, polyhedra.get(), "vertex_offset", vertex_offset, dims_vo, file);
     write_integers(hdf5::write_int32s, polyhedra.get(), "face_vertices", face_vertices, dims_fv, file);
     write_integers(hdf5::write_int64s, polyhedra.get(), "face_offset", face_offset, dims_fo, file);
-    write_integers(hdf5::write_int64s, polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo, file);
+    write_integers(hdf5::write_int64s, polyhedra.get(), "polyhedron_face_offset", polyhedron_face_offset, dims_pfo,
+                   file);
     write_vec3s(polyhedra.get(), "face_normal", face_normals, "1", file);
   }
   {
@@ -213,11 +214,11 @@ std::array<ColumnSpec, 8> basic_columns() {
 
 /// The conservation monitor's series columns (double, one value a step), in this order.
 constexpr std::array<const char*, 8> conservation_columns{
-    "potential_energy",   "total_energy",       "linear_momentum_x",  "linear_momentum_y",
-    "linear_momentum_z",  "angular_momentum_x", "angular_momentum_y", "angular_momentum_z"};
+    "potential_energy",  "total_energy",       "linear_momentum_x",  "linear_momentum_y",
+    "linear_momentum_z", "angular_momentum_x", "angular_momentum_y", "angular_momentum_z"};
 /// Their units.
 constexpr std::array<const char*, 8> conservation_units{"J",      "J",        "kg m/s",   "kg m/s",
-                                                       "kg m/s", "kg m^2/s", "kg m^2/s", "kg m^2/s"};
+                                                        "kg m/s", "kg m^2/s", "kg m^2/s", "kg m^2/s"};
 
 /// Rows per chunk of the series and of the snapshot index.
 constexpr hsize_t series_chunk_rows = 1024;
@@ -226,12 +227,18 @@ constexpr hsize_t series_chunk_rows = 1024;
 
 std::string_view run_status_name(RunStatus status) {
   switch (status) {
-    case RunStatus::running: return "running";
-    case RunStatus::at_rest: return "at_rest";
-    case RunStatus::end_time: return "end_time";
-    case RunStatus::interrupted: return "interrupted";
-    case RunStatus::numerical_failure: return "numerical_failure";
-    case RunStatus::closed: return "closed";
+    case RunStatus::running:
+      return "running";
+    case RunStatus::at_rest:
+      return "at_rest";
+    case RunStatus::end_time:
+      return "end_time";
+    case RunStatus::interrupted:
+      return "interrupted";
+    case RunStatus::numerical_failure:
+      return "numerical_failure";
+    case RunStatus::closed:
+      return "closed";
   }
   return "running";
 }
@@ -247,11 +254,11 @@ struct RunFile::Impl {
   Handle run_group;
   std::vector<std::string> stage_names;
   // One column per series dataset, in the order of SeriesRow's fields.
-  std::vector<hdf5::ExtendableColumn> columns;        // step .. wall_seconds
-  std::vector<hdf5::ExtendableColumn> stage_columns;  // one per stage
+  std::vector<hdf5::ExtendableColumn> columns;                 // step .. wall_seconds
+  std::vector<hdf5::ExtendableColumn> stage_columns;           // one per stage
   std::optional<hdf5::ExtendableColumn> snapshot_time_column;  // /snapshot_time
   std::optional<hdf5::ExtendableColumn> snapshot_step_column;  // /snapshot_step
-  std::vector<double> snapshot_times;  // s, of every snapshot in the file
+  std::vector<double> snapshot_times;                          // s, of every snapshot in the file
   std::int64_t last_snapshot_step = -1;
   // Buffered rows, column by column.
   std::vector<std::int64_t> step, contacts, active_contacts;
@@ -308,7 +315,8 @@ struct RunFile::Impl {
     columns[7].append(wall_seconds.data(), count, path);
     for (std::size_t c = 0; c < conservation.size(); ++c) columns[8 + c].append(conservation[c].data(), count, path);
     for (auto& column : conservation) column.clear();
-    for (std::size_t s = 0; s < stage_columns.size(); ++s) stage_columns[s].append(stage_seconds[s].data(), count, path);
+    for (std::size_t s = 0; s < stage_columns.size(); ++s)
+      stage_columns[s].append(stage_seconds[s].data(), count, path);
     for (auto* column : {&step, &contacts, &active_contacts}) column->clear();
     for (auto* column : {&time, &kinetic_energy, &residual, &wall_seconds}) column->clear();
     iterations.clear();
@@ -393,7 +401,8 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
     units(series, column.name, column.units, path);
   }
   for (std::size_t c = 0; c < conservation_columns.size(); ++c) {
-    impl->columns.emplace_back(series, conservation_columns[c], H5T_NATIVE_DOUBLE, series_chunk_rows, path, appended_storage);
+    impl->columns.emplace_back(series, conservation_columns[c], H5T_NATIVE_DOUBLE, series_chunk_rows, path,
+                               appended_storage);
     units(series, conservation_columns[c], conservation_units[c], path);
   }
   impl->stage_group = hdf5::create_group(series, "stage_seconds", path);
@@ -406,9 +415,11 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   hdf5::write_attribute(impl->stage_group.get(), "stage_order", std::span<const std::string>(impl->stage_names), path);
   impl->stage_seconds.resize(stage_names.size());
   impl->snapshots_group = hdf5::create_group(root, "snapshots", path);
-  impl->snapshot_time_column.emplace(root, "snapshot_time", H5T_NATIVE_DOUBLE, series_chunk_rows, path, appended_storage);
+  impl->snapshot_time_column.emplace(root, "snapshot_time", H5T_NATIVE_DOUBLE, series_chunk_rows, path,
+                                     appended_storage);
   units(root, "snapshot_time", "s", path);
-  impl->snapshot_step_column.emplace(root, "snapshot_step", H5T_NATIVE_INT64, series_chunk_rows, path, appended_storage);
+  impl->snapshot_step_column.emplace(root, "snapshot_step", H5T_NATIVE_INT64, series_chunk_rows, path,
+                                     appended_storage);
   units(root, "snapshot_step", "1", path);
   hdf5::check(H5Fflush(root, H5F_SCOPE_LOCAL), path, "cannot flush");
   return RunFile(std::move(impl));
@@ -470,8 +481,8 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
     std::array<char, 16> expected{};
     std::snprintf(expected.data(), expected.size(), "%06lld", static_cast<long long>(impl->snapshots));
     if (name != expected.data()) {
-      throw std::runtime_error(path.string() + ": snapshot " + name + " out of sequence (expected " +
-                               expected.data() + ")");
+      throw std::runtime_error(path.string() + ": snapshot " + name + " out of sequence (expected " + expected.data() +
+                               ")");
     }
     ++impl->snapshots;
     impl->snapshot_times.push_back(time);
@@ -521,8 +532,8 @@ void RunFile::append_series(const SeriesRow& row) {
   f.residual.push_back(row.residual);
   f.wall_seconds.push_back(row.wall_seconds);
   const std::array<double, conservation_columns.size()> monitor{
-      row.potential_energy,      row.total_energy,          row.linear_momentum.x(),  row.linear_momentum.y(),
-      row.linear_momentum.z(),   row.angular_momentum.x(),  row.angular_momentum.y(), row.angular_momentum.z()};
+      row.potential_energy,    row.total_energy,         row.linear_momentum.x(),  row.linear_momentum.y(),
+      row.linear_momentum.z(), row.angular_momentum.x(), row.angular_momentum.y(), row.angular_momentum.z()};
   for (std::size_t c = 0; c < monitor.size(); ++c) f.conservation[c].push_back(monitor[c]);
   for (std::size_t s = 0; s < f.stage_names.size(); ++s) f.stage_seconds[s].push_back(row.stage_seconds[s]);
   ++f.rows;
@@ -566,9 +577,11 @@ void RunFile::write_snapshot_now(const State& state, const ContactList& contacts
   hdf5::write_attribute(g, "interrupted", std::int64_t{interrupted ? 1 : 0}, f.path);
 
   const std::size_t n = state.body_count();
-  if (n != f.body_count || state.orientation.size() != n || state.velocity.size() != n || state.angular_velocity.size() != n) {
+  if (n != f.body_count || state.orientation.size() != n || state.velocity.size() != n ||
+      state.angular_velocity.size() != n) {
     throw std::invalid_argument(f.path.string() + ": snapshot of a state with " + std::to_string(n) +
-                                " bodies (or arrays of different sizes), the model has " + std::to_string(f.body_count));
+                                " bodies (or arrays of different sizes), the model has " +
+                                std::to_string(f.body_count));
   }
   write_vec3s(g, "position", state.position, "m", f.path);
   std::vector<double> orientation;

@@ -26,10 +26,10 @@ inline constexpr int run_file_format_version = 2;
 /// One setting of the run as the run used it (/run/<name> in the run file): what the scene gave,
 /// or what rubble chose where the scene said "auto" or left the key out.
 struct RunParameter {
-  std::string name;           ///< dataset name under /run (no '/' or '.')
-  double value = 0.0;         ///< in SI units
-  std::string units;          ///< e.g. "s", "J", "m"
-  bool automatic = false;     ///< chosen by rubble ("auto" or a default computed from the scene)
+  std::string name;        ///< dataset name under /run (no '/' or '.')
+  double value = 0.0;      ///< in SI units
+  std::string units;       ///< e.g. "s", "J", "m"
+  bool automatic = false;  ///< chosen by rubble ("auto" or a default computed from the scene)
 };
 
 /// Why a run file's run ended, or that it has not (/run@status).
@@ -47,16 +47,16 @@ std::string_view run_status_name(RunStatus status);
 
 /// One row of the per-step series (/series in the run file).
 struct SeriesRow {
-  std::int64_t step = 0;             ///< number of steps taken
-  double time = 0.0;                 ///< s, simulated time at the end of the step
-  double kinetic_energy = 0.0;       ///< J, total (translation + rotation) over all bodies
-  std::int64_t contacts = 0;         ///< contact points found (gap < alert distance)
-  std::int64_t active_contacts = 0;  ///< contacts in the solver's problem
-  int iterations = 0;                ///< NLGS sweeps done
-  double residual = 0.0;             ///< NLGS residual at exit
-  double wall_seconds = 0.0;         ///< wall time of the whole step, s
-  double potential_energy = 0.0;     ///< J, gravitational potential energy of the grains (StepReport)
-  double total_energy = 0.0;         ///< J, kinetic + potential
+  std::int64_t step = 0;                 ///< number of steps taken
+  double time = 0.0;                     ///< s, simulated time at the end of the step
+  double kinetic_energy = 0.0;           ///< J, total (translation + rotation) over all bodies
+  std::int64_t contacts = 0;             ///< contact points found (gap < alert distance)
+  std::int64_t active_contacts = 0;      ///< contacts in the solver's problem
+  int iterations = 0;                    ///< NLGS sweeps done
+  double residual = 0.0;                 ///< NLGS residual at exit
+  double wall_seconds = 0.0;             ///< wall time of the whole step, s
+  double potential_energy = 0.0;         ///< J, gravitational potential energy of the grains (StepReport)
+  double total_energy = 0.0;             ///< J, kinetic + potential
   Vec3 linear_momentum = Vec3::Zero();   ///< kg m/s, of the grains
   Vec3 angular_momentum = Vec3::Zero();  ///< kg m^2/s, of the grains about their centre of mass
   /// Wall time of each stage, s, in the order of the stage names given to RunFile::create.

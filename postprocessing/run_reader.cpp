@@ -36,7 +36,8 @@ std::vector<Vec3> read_vec3s(hid_t parent, const std::string& name, std::size_t 
   const hdf5::Array<double> array = hdf5::read_doubles(parent, name, file);
   expect_shape(array, rows, 3, name, file);
   std::vector<Vec3> vectors(rows);
-  for (std::size_t i = 0; i < rows; ++i) vectors[i] = Vec3(array.values[3 * i], array.values[3 * i + 1], array.values[3 * i + 2]);
+  for (std::size_t i = 0; i < rows; ++i)
+    vectors[i] = Vec3(array.values[3 * i], array.values[3 * i + 1], array.values[3 * i + 2]);
   return vectors;
 }
 
@@ -52,7 +53,8 @@ std::vector<double> read_column(hid_t parent, const std::string& name, std::size
   return std::move(array.values);
 }
 
-std::vector<std::int64_t> read_int_column(hid_t parent, const std::string& name, std::size_t rows, const fs::path& file) {
+std::vector<std::int64_t> read_int_column(hid_t parent, const std::string& name, std::size_t rows,
+                                          const fs::path& file) {
   hdf5::Array<std::int64_t> array = hdf5::read_int64s(parent, name, file);
   expect_shape(array, rows, 0, name, file);
   return std::move(array.values);
@@ -118,10 +120,14 @@ Model read_model(hid_t root, const fs::path& file) {
     const std::vector<std::int64_t> face_vertices = read_int_column_any(p, "face_vertices", file);
     const std::vector<std::int64_t> face_offset = read_int_column_any(p, "face_offset", file);
     const std::vector<std::int64_t> polyhedron_face_offset = read_int_column_any(p, "polyhedron_face_offset", file);
-    const std::vector<Vec3> face_normal = read_vec3s(p, "face_normal", face_offset.empty() ? 0 : face_offset.size() - 1, file);
+    const std::vector<Vec3> face_normal =
+        read_vec3s(p, "face_normal", face_offset.empty() ? 0 : face_offset.size() - 1, file);
     const std::size_t count = vertex_offset.empty() ? 0 : vertex_offset.size() - 1;
-    const auto in_range = [](std::int64_t value, std::size_t end) { return value >= 0 && static_cast<std::size_t>(value) <= end; };
-    if (polyhedron_face_offset.size() != count + 1) bad(file, "polyhedra: vertex_offset and polyhedron_face_offset differ in length");
+    const auto in_range = [](std::int64_t value, std::size_t end) {
+      return value >= 0 && static_cast<std::size_t>(value) <= end;
+    };
+    if (polyhedron_face_offset.size() != count + 1)
+      bad(file, "polyhedra: vertex_offset and polyhedron_face_offset differ in length");
     for (std::size_t s = 0; s < count; ++s) {
       ConvexPolyhedron shape;
       const std::int64_t v0 = vertex_offset[s], v1 = vertex_offset[s + 1];
@@ -133,14 +139,16 @@ Model read_model(hid_t root, const fs::path& file) {
       shape.vertices.assign(vertices.begin() + v0, vertices.begin() + v1);
       std::set<std::pair<int, int>> edges;
       for (std::int64_t f = f0; f < f1; ++f) {
-        const std::int64_t k0 = face_offset[static_cast<std::size_t>(f)], k1 = face_offset[static_cast<std::size_t>(f) + 1];
+        const std::int64_t k0 = face_offset[static_cast<std::size_t>(f)],
+                           k1 = face_offset[static_cast<std::size_t>(f) + 1];
         if (!in_range(k0, face_vertices.size()) || !in_range(k1, face_vertices.size()) || k1 < k0 + 3) {
           bad(file, "polyhedra: face " + std::to_string(f) + " has bad offsets or fewer than 3 vertices");
         }
         std::vector<int> face;
         for (std::int64_t k = k0; k < k1; ++k) {
           const std::int64_t v = face_vertices[static_cast<std::size_t>(k)];
-          if (v < 0 || v >= v1 - v0) bad(file, "polyhedra: face " + std::to_string(f) + " has a vertex index out of range");
+          if (v < 0 || v >= v1 - v0)
+            bad(file, "polyhedra: face " + std::to_string(f) + " has a vertex index out of range");
           face.push_back(static_cast<int>(v));
         }
         for (std::size_t k = 0; k < face.size(); ++k) {
@@ -177,14 +185,16 @@ Model read_model(hid_t root, const fs::path& file) {
       bad(file, "model: body " + std::to_string(i) + " has a material out of range");
     }
     if (kind == ShapeKind::sphere) {
-      if (model.spheres.size() <= static_cast<std::size_t>(index)) model.spheres.resize(static_cast<std::size_t>(index) + 1);
+      if (model.spheres.size() <= static_cast<std::size_t>(index))
+        model.spheres.resize(static_cast<std::size_t>(index) + 1);
       model.spheres[static_cast<std::size_t>(index)].radius = radius[i];
     }
     model.shape_kind.push_back(kind);
     model.shape_index.push_back(static_cast<int>(index));
     model.material.push_back(static_cast<int>(material[i]));
     model.inverse_mass.push_back(model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0);
-    model.inverse_inertia.push_back(model.mass[i] > 0.0 ? Vec3(model.principal_inertia[i].cwiseInverse()) : Vec3::Zero());
+    model.inverse_inertia.push_back(model.mass[i] > 0.0 ? Vec3(model.principal_inertia[i].cwiseInverse())
+                                                        : Vec3::Zero());
   }
   return model;
 }
@@ -248,8 +258,8 @@ RunReader RunReader::open(const fs::path& path) {
   }
   const double version = hdf5::read_double_attribute(root, "format_version", path);
   if (version > run_file_format_version) {
-    bad(path, "run file format version " + std::to_string(static_cast<int>(version)) + " is newer than this rubble reads (" +
-                  std::to_string(run_file_format_version) + ")");
+    bad(path, "run file format version " + std::to_string(static_cast<int>(version)) +
+                  " is newer than this rubble reads (" + std::to_string(run_file_format_version) + ")");
   }
   if (version >= 2) {
     Handle run = hdf5::open_group(root, "run", path);
@@ -277,7 +287,8 @@ bool RunReader::live() const { return impl_->live; }
 RunSnapshot RunReader::read_snapshot(std::size_t index) const {
   const Impl& r = *impl_;
   if (index >= r.snapshot_names.size()) {
-    bad(r.path, "snapshot " + std::to_string(index) + " requested, the file has " + std::to_string(r.snapshot_names.size()));
+    bad(r.path,
+        "snapshot " + std::to_string(index) + " requested, the file has " + std::to_string(r.snapshot_names.size()));
   }
   const hdf5::QuietErrors quiet;
   const std::string name = "snapshots/" + r.snapshot_names[index];
@@ -311,7 +322,8 @@ RunSnapshot RunReader::read_snapshot(std::size_t index) const {
   const std::vector<std::int64_t> status = read_int_column(g, "contact_status", c, where);
   snapshot.contacts.resize(c);
   for (std::size_t k = 0; k < c; ++k) {
-    if (body_a[k] < 0 || body_b[k] < 0 || static_cast<std::size_t>(body_a[k]) >= n || static_cast<std::size_t>(body_b[k]) >= n) {
+    if (body_a[k] < 0 || body_b[k] < 0 || static_cast<std::size_t>(body_a[k]) >= n ||
+        static_cast<std::size_t>(body_b[k]) >= n) {
       bad(where, "contact " + std::to_string(k) + " names a body out of range");
     }
     if (status[k] < 0 || status[k] > static_cast<std::int64_t>(ContactStatus::sliding)) {
@@ -355,7 +367,8 @@ RunSeries RunReader::read_series() const {
   }
   Handle stages = hdf5::open_group(g, "stage_seconds", r.path);
   series.stage_names = hdf5::link_names(stages.get(), r.path);
-  for (const std::string& name : series.stage_names) series.stage_seconds.push_back(read_column(stages.get(), name, rows, r.path));
+  for (const std::string& name : series.stage_names)
+    series.stage_seconds.push_back(read_column(stages.get(), name, rows, r.path));
   return series;
 }
 

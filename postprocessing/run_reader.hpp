@@ -28,16 +28,16 @@ struct RunSeries {
   /// linear_momentum_x/y/z, angular_momentum_x/y/z; docs/output-format.md), by name; none in run
   /// files written before 2026-11-24.
   std::vector<std::string> monitor_names;
-  std::vector<std::vector<double>> monitor;   ///< one column per monitor name
-  std::vector<std::string> stage_names;       ///< names of the stage columns, in step order
+  std::vector<std::vector<double>> monitor;        ///< one column per monitor name
+  std::vector<std::string> stage_names;            ///< names of the stage columns, in step order
   std::vector<std::vector<double>> stage_seconds;  ///< s, one column per stage name
 };
 
 /// A snapshot read back: the state and the contact points (id.body_a/b, point, frame, gap,
 /// impulse, status filled; the solver's working fields left at their defaults; features 0).
 struct RunSnapshot {
-  State state;          ///< time, step, positions, orientations, velocities
-  ContactList contacts; ///< the contacts of the step that ended at that time
+  State state;           ///< time, step, positions, orientations, velocities
+  ContactList contacts;  ///< the contacts of the step that ended at that time
 };
 
 /// A run file open for reading. Every problem (not an HDF5 file, not a rubble run file, a newer

@@ -160,8 +160,8 @@ void VtkSeries::write(const State& state, const ContactList& contacts) {
     }
     data->SetPoints(points);
     data->SetVerts(vertices);
-    for (vtkDataArray* array : std::initializer_list<vtkDataArray*>{body, contacts_per_grain, radius, diameter, velocity,
-                                                                    angular_velocity}) {
+    for (vtkDataArray* array :
+         std::initializer_list<vtkDataArray*>{body, contacts_per_grain, radius, diameter, velocity, angular_velocity}) {
       data->GetPointData()->AddArray(array);
     }
     data->GetPointData()->SetActiveScalars("diameter");  // glyph scale by default
@@ -196,7 +196,8 @@ void VtkSeries::write(const State& state, const ContactList& contacts) {
     }
     data->SetPoints(points);
     data->SetPolys(polygons);
-    for (vtkDataArray* array : std::initializer_list<vtkDataArray*>{body, contacts_per_grain, velocity, angular_velocity}) {
+    for (vtkDataArray* array :
+         std::initializer_list<vtkDataArray*>{body, contacts_per_grain, velocity, angular_velocity}) {
       data->GetCellData()->AddArray(array);
     }
     write_polydata(data, impl_->file_of("polyhedra", index));
@@ -264,7 +265,8 @@ void VtkSeries::write(const State& state, const ContactList& contacts) {
         double size = impl_->options.plane_size;
         if (size <= 0.0) {
           for (std::size_t g = 0; g < n; ++g) {
-            if (model.is_grain(g)) size = std::max(size, 2.0 * ((state.position[g] - state.position[i]).norm() + model.bounding_radius[g]));
+            if (model.is_grain(g))
+              size = std::max(size, 2.0 * ((state.position[g] - state.position[i]).norm() + model.bounding_radius[g]));
           }
           if (size <= 0.0) size = 1.0;
         }

@@ -15,9 +15,12 @@ namespace {
 /// subset, which the Welzl recursion then corrects if a point is left outside.
 EnclosingSphere ball_through(const std::vector<Vec3>& boundary) {
   switch (boundary.size()) {
-    case 0: return {Vec3::Zero(), -1.0};
-    case 1: return {boundary[0], 0.0};
-    case 2: return {0.5 * (boundary[0] + boundary[1]), 0.5 * (boundary[1] - boundary[0]).norm()};
+    case 0:
+      return {Vec3::Zero(), -1.0};
+    case 1:
+      return {boundary[0], 0.0};
+    case 2:
+      return {0.5 * (boundary[0] + boundary[1]), 0.5 * (boundary[1] - boundary[0]).norm()};
     case 3: {
       // Circumcircle of a triangle in 3D: c = a + (|u|^2 (v x (u x v))... written with w = u x v:
       // c = a + (|u|^2 (v x w) + |v|^2 (w x u)) / (2 |w|^2), u = b - a, v = c - a.
@@ -29,7 +32,8 @@ EnclosingSphere ball_through(const std::vector<Vec3>& boundary) {
       if (!(w2 > 1e-24 * u.squaredNorm() * v.squaredNorm())) {
         // Collinear: the ball of the farthest pair.
         const double duv = (boundary[2] - boundary[1]).squaredNorm();
-        if (u.squaredNorm() >= v.squaredNorm() && u.squaredNorm() >= duv) return ball_through({boundary[0], boundary[1]});
+        if (u.squaredNorm() >= v.squaredNorm() && u.squaredNorm() >= duv)
+          return ball_through({boundary[0], boundary[1]});
         if (v.squaredNorm() >= duv) return ball_through({boundary[0], boundary[2]});
         return ball_through({boundary[1], boundary[2]});
       }
@@ -71,7 +75,8 @@ EnclosingSphere welzl(std::vector<Vec3>& points, std::size_t end, std::vector<Ve
     ball = welzl(points, i, boundary);
     boundary.pop_back();
     // Move to front: points that fell outside once are likely to define the final ball.
-    std::rotate(points.begin(), points.begin() + static_cast<std::ptrdiff_t>(i), points.begin() + static_cast<std::ptrdiff_t>(i) + 1);
+    std::rotate(points.begin(), points.begin() + static_cast<std::ptrdiff_t>(i),
+                points.begin() + static_cast<std::ptrdiff_t>(i) + 1);
   }
   return ball;
 }

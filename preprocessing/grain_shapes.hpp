@@ -37,9 +37,9 @@ Quat random_rotation(std::mt19937_64& rng);
 /// A polyhedral grain ready to add to a model: shape in its principal body frame, centroid
 /// position and orientation in the world.
 struct PlacedPolyhedron {
-  ConvexPolyhedron shape;                ///< body frame (centroid at the origin)
-  Vec3 position = Vec3::Zero();          ///< m, centroid in the world
-  Quat orientation = Quat::Identity();   ///< body -> world
+  ConvexPolyhedron shape;               ///< body frame (centroid at the origin)
+  Vec3 position = Vec3::Zero();         ///< m, centroid in the world
+  Quat orientation = Quat::Identity();  ///< body -> world
 };
 
 /// A random polyhedron (options.diameter is replaced by 2 grain.radius) at a random orientation,

@@ -158,7 +158,8 @@ std::uint64_t box_deposit_capacity(const BoxDepositOptions& options) {
     const double extent = options.region_max[axis] - options.region_min[axis];
     if (!(extent > 0.0)) {
       std::ostringstream out;
-      out << "region_max must exceed region_min on every axis, got extent " << extent << " m on axis " << "xyz"[axis];
+      out << "region_max must exceed region_min on every axis, got extent " << extent << " m on axis "
+          << "xyz"[axis];
       throw PackingError(out.str());
     }
     // The relative 1e-9 keeps an extent meant as an exact multiple of the cell from losing a layer
@@ -225,7 +226,8 @@ double sphere_cloud_radius(std::uint64_t count, const SizeRange& sizes, double v
   const double b = sizes.radius_max;
   double mean_r3 = b * b * b;
   switch (sizes.distribution) {
-    case SizeDistribution::monodisperse: break;
+    case SizeDistribution::monodisperse:
+      break;
     case SizeDistribution::uniform_radius:
       if (b > a) mean_r3 = (b * b * b * b - a * a * a * a) / (4.0 * (b - a));
       break;
@@ -268,7 +270,9 @@ std::vector<PackedGrain> sphere_cloud(const SphereCloudOptions& options, std::ui
   const double cell = 2.0 * options.sizes.radius_max;
   const auto key_of = [&](const Vec3& x) {
     std::array<std::int64_t, 3> k{};
-    for (int axis = 0; axis < 3; ++axis) k[static_cast<std::size_t>(axis)] = static_cast<std::int64_t>(std::floor((x[axis] - options.center[axis]) / cell));
+    for (int axis = 0; axis < 3; ++axis)
+      k[static_cast<std::size_t>(axis)] =
+          static_cast<std::int64_t>(std::floor((x[axis] - options.center[axis]) / cell));
     return k;
   };
   const auto hash = [](const std::array<std::int64_t, 3>& k) {

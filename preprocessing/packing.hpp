@@ -53,8 +53,8 @@ struct SizeRange {
   double radius_min = 0.0;  ///< m, > 0 (for bins: half the smallest diameter, see size_bins())
   double radius_max = 0.0;  ///< m, >= radius_min (for bins: half the largest diameter)
   SizeDistribution distribution = SizeDistribution::uniform_radius;  ///< law of the radius
-  std::vector<SizeBin> bins;           ///< SizeDistribution::bins only
-  bool bin_fractions_by_volume = true; ///< bins: fractions of the volume (true) or of the number
+  std::vector<SizeBin> bins;                                         ///< SizeDistribution::bins only
+  bool bin_fractions_by_volume = true;  ///< bins: fractions of the volume (true) or of the number
 };
 
 /// A SizeRange of discrete bins, radius_min/radius_max set from the bins. Throws PackingError
@@ -72,8 +72,8 @@ struct PackedGrain {
 
 /// A given number of grains in an axis-aligned box region (a deposit before it falls).
 struct BoxDepositOptions {
-  std::uint64_t count = 0;       ///< number of grains, <= max_packed_grains
-  SizeRange sizes{};             ///< radii
+  std::uint64_t count = 0;         ///< number of grains, <= max_packed_grains
+  SizeRange sizes{};               ///< radii
   Vec3 region_min = Vec3::Zero();  ///< m, lower corner of the region every grain lies inside
   Vec3 region_max = Vec3::Zero();  ///< m, upper corner
   /// m, edge of the grid cells; 0 picks 2.2 radius_max (a loose grid: grains start apart).
@@ -93,10 +93,10 @@ struct CubicGridOptions {
 /// overlapping (random sequential addition: each grain, largest first, is tried at random
 /// positions until it overlaps none of those placed before).
 struct SphereCloudOptions {
-  std::uint64_t count = 0;       ///< number of grains
-  SizeRange sizes{};             ///< radii
-  Vec3 center = Vec3::Zero();    ///< m, centre of the ball
-  double radius = 0.0;           ///< m, radius of the ball every grain lies inside, >= radius_max
+  std::uint64_t count = 0;     ///< number of grains
+  SizeRange sizes{};           ///< radii
+  Vec3 center = Vec3::Zero();  ///< m, centre of the ball
+  double radius = 0.0;         ///< m, radius of the ball every grain lies inside, >= radius_max
   /// Tries per grain before giving up with a PackingError (the cloud is too dense: random
   /// sequential addition jams near a volume fraction of 0.38 for equal spheres).
   int max_attempts = 10000;

@@ -46,7 +46,8 @@ double parse_number(const std::string& path, int line, const std::string& token)
 long parse_integer(const std::string& path, int line, const std::string& token) {
   long value = 0;
   const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (error != std::errc() || end != token.data() + token.size()) fail(path, line, "expected an integer, got '" + token + "'");
+  if (error != std::errc() || end != token.data() + token.size())
+    fail(path, line, "expected an integer, got '" + token + "'");
   return value;
 }
 
@@ -84,7 +85,8 @@ MeshText read_off(const std::string& path, std::istream& in) {
   }
   for (long i = 0; i < nv; ++i) {
     const auto tokens = next_tokens("a vertex 'x y z'");
-    if (tokens.size() < 3) fail(path, line, "expected a vertex 'x y z', got " + std::to_string(tokens.size()) + " numbers");
+    if (tokens.size() < 3)
+      fail(path, line, "expected a vertex 'x y z', got " + std::to_string(tokens.size()) + " numbers");
     mesh.vertices.emplace_back(parse_number(path, line, tokens[0]), parse_number(path, line, tokens[1]),
                                parse_number(path, line, tokens[2]));
     mesh.vertex_lines.push_back(line);
@@ -93,8 +95,9 @@ MeshText read_off(const std::string& path, std::istream& in) {
     const auto tokens = next_tokens("a face 'k i1 ... ik'");
     const long k = parse_integer(path, line, tokens[0]);
     if (k < 3 || static_cast<std::size_t>(k) + 1 > tokens.size()) {
-      fail(path, line, "expected a face 'k i1 ... ik' with k >= 3 indices, got k = " + std::to_string(k) + " and " +
-                           std::to_string(tokens.size() - 1) + " indices");
+      fail(path, line,
+           "expected a face 'k i1 ... ik' with k >= 3 indices, got k = " + std::to_string(k) + " and " +
+               std::to_string(tokens.size() - 1) + " indices");
     }
     std::vector<int> face;
     for (long j = 1; j <= k; ++j) {
@@ -135,8 +138,9 @@ MeshText read_obj(const std::string& path, std::istream& in) {
         const long count = static_cast<long>(mesh.vertices.size());
         const long index = raw < 0 ? count + raw : raw - 1;  // OBJ: 1-based, negative = relative
         if (raw == 0 || index < 0 || index >= count) {
-          fail(path, line, "vertex index " + std::to_string(raw) + " out of range (" + std::to_string(count) +
-                               " vertices defined so far; OBJ indices start at 1)");
+          fail(path, line,
+               "vertex index " + std::to_string(raw) + " out of range (" + std::to_string(count) +
+                   " vertices defined so far; OBJ indices start at 1)");
         }
         face.push_back(static_cast<int>(index));
       }
@@ -152,7 +156,8 @@ MeshText read_obj(const std::string& path, std::istream& in) {
 std::string lower_extension(const std::string& path) {
   const auto dot = path.find_last_of('.');
   std::string ext = dot == std::string::npos ? "" : path.substr(dot + 1);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
 }
 
@@ -212,7 +217,8 @@ ConvexPolyhedron load_polyhedron_file(const std::string& path, const PolyhedronF
   try {
     return make_convex_polyhedron(std::move(vertices), std::move(faces), build, pose);
   } catch (const PolyhedronError& e) {
-    fail(path, mesh.face_lines.empty() ? 1 : mesh.face_lines.front(), std::string("after merging coplanar faces: ") + e.what());
+    fail(path, mesh.face_lines.empty() ? 1 : mesh.face_lines.front(),
+         std::string("after merging coplanar faces: ") + e.what());
   }
 }
 

@@ -30,7 +30,8 @@ double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11)
 /// Uniform integer in [lo, hi] (rejection sampling: no modulo bias).
 int uniform_int(std::mt19937_64& rng, int lo, int hi) {
   const std::uint64_t range = static_cast<std::uint64_t>(hi - lo) + 1;
-  const std::uint64_t limit = std::numeric_limits<std::uint64_t>::max() - std::numeric_limits<std::uint64_t>::max() % range;
+  const std::uint64_t limit =
+      std::numeric_limits<std::uint64_t>::max() - std::numeric_limits<std::uint64_t>::max() % range;
   std::uint64_t x;
   do {
     x = rng();
@@ -63,12 +64,16 @@ void check_options(const RandomPolyhedronOptions& o) {
   auto bad = [](const std::string& what) { throw std::invalid_argument("random polyhedron: " + what); };
   if (o.min_vertices < 4) bad("min_vertices = " + std::to_string(o.min_vertices) + ", expected >= 4");
   if (o.max_vertices < o.min_vertices) {
-    bad("max_vertices = " + std::to_string(o.max_vertices) + ", expected >= min_vertices = " + std::to_string(o.min_vertices));
+    bad("max_vertices = " + std::to_string(o.max_vertices) +
+        ", expected >= min_vertices = " + std::to_string(o.min_vertices));
   }
   if (o.max_vertices > 100000) bad("max_vertices = " + std::to_string(o.max_vertices) + ", expected <= 100000");
-  if (!(o.min_elongation > 0.0 && o.min_elongation <= 1.0)) bad("min_elongation = " + std::to_string(o.min_elongation) + ", expected in (0, 1]");
-  if (!(o.min_platyness > 0.0 && o.min_platyness <= 1.0)) bad("min_platyness = " + std::to_string(o.min_platyness) + ", expected in (0, 1]");
-  if (!(o.diameter > 0.0) || !std::isfinite(o.diameter)) bad("diameter = " + std::to_string(o.diameter) + ", expected > 0");
+  if (!(o.min_elongation > 0.0 && o.min_elongation <= 1.0))
+    bad("min_elongation = " + std::to_string(o.min_elongation) + ", expected in (0, 1]");
+  if (!(o.min_platyness > 0.0 && o.min_platyness <= 1.0))
+    bad("min_platyness = " + std::to_string(o.min_platyness) + ", expected in (0, 1]");
+  if (!(o.diameter > 0.0) || !std::isfinite(o.diameter))
+    bad("diameter = " + std::to_string(o.diameter) + ", expected > 0");
   if (!(o.merge_angle_degrees >= 0.0 && o.merge_angle_degrees < 30.0)) {
     bad("merge_angle_degrees = " + std::to_string(o.merge_angle_degrees) + ", expected in [0, 30)");
   }
@@ -80,7 +85,8 @@ std::vector<std::array<int, 3>> convex_hull_triangles(const std::vector<Vec3>& p
   const Mesh mesh = hull_mesh(points);
   // Hull vertices are copies of input points: find their indices by exact coordinates.
   std::map<std::array<double, 3>, int> index;
-  for (std::size_t i = 0; i < points.size(); ++i) index.emplace(std::array<double, 3>{points[i].x(), points[i].y(), points[i].z()}, static_cast<int>(i));
+  for (std::size_t i = 0; i < points.size(); ++i)
+    index.emplace(std::array<double, 3>{points[i].x(), points[i].y(), points[i].z()}, static_cast<int>(i));
   std::vector<std::array<int, 3>> triangles;
   for (const auto face : mesh.faces()) {
     std::array<int, 3> t{};
@@ -108,7 +114,8 @@ Ball smallest_enclosing_ball(const std::vector<Vec3>& points) {
   std::vector<Point> cgal_points;
   cgal_points.reserve(points.size());
   for (const Vec3& p : points) cgal_points.emplace_back(p.x(), p.y(), p.z());
-  CGAL::Min_sphere_of_spheres_d<Traits> min_sphere(cgal_points.begin(), cgal_points.end());  // radius() updates lazily: not const
+  CGAL::Min_sphere_of_spheres_d<Traits> min_sphere(cgal_points.begin(),
+                                                   cgal_points.end());  // radius() updates lazily: not const
   Ball ball;
   ball.radius = CGAL::to_double(min_sphere.radius());
   auto coordinate = min_sphere.center_cartesian_begin();

@@ -18,11 +18,11 @@ namespace rubble {
 
 /// Parameters of generate_random_polyhedron (defaults: the accretion study's).
 struct RandomPolyhedronOptions {
-  int min_vertices = 10;          ///< n_v drawn uniformly in [min_vertices, max_vertices], >= 4
-  int max_vertices = 70;          ///< >= min_vertices
-  double min_elongation = 0.5;    ///< elongation e = (intermediate axis)/(long axis) uniform in [min, 1], (0, 1]
-  double min_platyness = 0.5;     ///< platyness p = (short axis)/(intermediate axis) uniform in [min, 1], (0, 1]
-  double diameter = 1.0;          ///< m, diameter of the circumscribed sphere, > 0
+  int min_vertices = 10;        ///< n_v drawn uniformly in [min_vertices, max_vertices], >= 4
+  int max_vertices = 70;        ///< >= min_vertices
+  double min_elongation = 0.5;  ///< elongation e = (intermediate axis)/(long axis) uniform in [min, 1], (0, 1]
+  double min_platyness = 0.5;   ///< platyness p = (short axis)/(intermediate axis) uniform in [min, 1], (0, 1]
+  double diameter = 1.0;        ///< m, diameter of the circumscribed sphere, > 0
   /// Adjacent hull facets whose normals differ by less than this angle are merged into one
   /// planar-ish face, so a grain resting on two nearly coplanar facets does not flip between
   /// them from step to step. 0 keeps CGAL's triangles.

@@ -18,10 +18,14 @@ fs::path run_file_of(const fs::path& path) { return fs::is_directory(path) ? pat
 
 std::string_view shape_name(ShapeKind kind) {
   switch (kind) {
-    case ShapeKind::sphere: return "sphere";
-    case ShapeKind::polyhedron: return "polyhedron";
-    case ShapeKind::plane: return "plane wall";
-    case ShapeKind::box: return "box wall";
+    case ShapeKind::sphere:
+      return "sphere";
+    case ShapeKind::polyhedron:
+      return "polyhedron";
+    case ShapeKind::plane:
+      return "plane wall";
+    case ShapeKind::box:
+      return "box wall";
   }
   return "?";
 }
@@ -44,8 +48,8 @@ SavedState from_snapshot(const BranchSource& source, const fs::path& file) {
     if (source.kind == BranchSource::Kind::snapshot) {
       index = source.snapshot < 0 ? count + source.snapshot : source.snapshot;
       if (index < 0 || index >= count) {
-        throw BranchError(fmt::format("{}: no snapshot {} (the file has {}: 0 to {}, or -1 for the last)", file.string(),
-                                      source.snapshot, count, count - 1));
+        throw BranchError(fmt::format("{}: no snapshot {} (the file has {}: 0 to {}, or -1 for the last)",
+                                      file.string(), source.snapshot, count, count - 1));
       }
     } else if (source.kind == BranchSource::Kind::time) {
       // Snapshots are in time order: the last one at or before T, by bisection.
@@ -101,8 +105,8 @@ BranchSource parse_branch_source(std::string_view text) {
     if (owned.empty() || used != owned.size() || !std::isfinite(parsed) || (integer && parsed != std::floor(parsed)) ||
         std::abs(parsed) > 9e15) {
       throw BranchError(fmt::format("{}: expected {} after '{}', got '{}'", text,
-                                    integer ? "an integer" : "a finite time in s", selector.substr(0, selector.find('=') + 1),
-                                    owned));
+                                    integer ? "an integer" : "a finite time in s",
+                                    selector.substr(0, selector.find('=') + 1), owned));
     }
     return parsed;
   };
@@ -117,9 +121,10 @@ BranchSource parse_branch_source(std::string_view text) {
     source.kind = BranchSource::Kind::time;
     source.time = number(selector.substr(5), false);
   } else if (selector.find('=') != std::string_view::npos || selector.empty()) {
-    throw BranchError(fmt::format("{}: unknown selector '{}' (expected DIR, DIR:last, DIR:snapshot=K or "
-                                  "DIR:time=T)",
-                                  text, selector));
+    throw BranchError(
+        fmt::format("{}: unknown selector '{}' (expected DIR, DIR:last, DIR:snapshot=K or "
+                    "DIR:time=T)",
+                    text, selector));
   }
   // Otherwise the colon is part of the path.
   if (source.path.empty()) throw BranchError(fmt::format("{}: expected a run folder before ':'", text));
@@ -144,8 +149,8 @@ SavedState load_saved_state(const BranchSource& source) {
       try {
         saved.model = parse_scene(loaded.checkpoint.scene_text, loaded.checkpoint.scene_source).model;
       } catch (const std::exception& error) {
-        throw BranchError(fmt::format("{}: the checkpoint's scene cannot be read back: {}", loaded.file.string(),
-                                      error.what()));
+        throw BranchError(
+            fmt::format("{}: the checkpoint's scene cannot be read back: {}", loaded.file.string(), error.what()));
       }
       saved.description = fmt::format("checkpoint {} (step {}, t = {:.6g} s)", loaded.file.string(), saved.state.step,
                                       saved.state.time);
@@ -154,16 +159,16 @@ SavedState load_saved_state(const BranchSource& source) {
   }
   const fs::path file = run_file_of(source.path);
   if (!fs::exists(file)) {
-    throw BranchError(fmt::format("{}: no checkpoint and no run file {} to take a state from", source.path.string(),
-                                  file.string()));
+    throw BranchError(
+        fmt::format("{}: no checkpoint and no run file {} to take a state from", source.path.string(), file.string()));
   }
   return from_snapshot(source, file);
 }
 
 std::optional<std::string> body_mismatch(const Model& scene_model, const Model& saved_model) {
   if (scene_model.body_count() != saved_model.body_count()) {
-    return fmt::format("the scene has {} bodies ({} grains), the saved run {} bodies ({} grains)", scene_model.body_count(),
-                       grains(scene_model), saved_model.body_count(), grains(saved_model));
+    return fmt::format("the scene has {} bodies ({} grains), the saved run {} bodies ({} grains)",
+                       scene_model.body_count(), grains(scene_model), saved_model.body_count(), grains(saved_model));
   }
   for (std::size_t b = 0; b < scene_model.body_count(); ++b) {
     const ShapeKind kind = scene_model.shape_kind[b];
@@ -177,15 +182,17 @@ std::optional<std::string> body_mismatch(const Model& scene_model, const Model& 
       const double r = scene_model.spheres[index].radius;
       const double saved_r = saved_model.spheres[saved_index].radius;
       if (!close(r, saved_r)) {
-        return fmt::format("body {} (a sphere) has radius {:.9g} m in the scene, {:.9g} m in the saved run", b, r, saved_r);
+        return fmt::format("body {} (a sphere) has radius {:.9g} m in the scene, {:.9g} m in the saved run", b, r,
+                           saved_r);
       }
     } else if (kind == ShapeKind::polyhedron) {
       const std::size_t v = scene_model.polyhedra[index].vertices.size();
       const std::size_t saved_v = saved_model.polyhedra[saved_index].vertices.size();
       if (v != saved_v || !close(scene_model.bounding_radius[b], saved_model.bounding_radius[b])) {
-        return fmt::format("body {} (a polyhedron) has {} vertices and bounding radius {:.9g} m in the scene, {} and "
-                           "{:.9g} m in the saved run",
-                           b, v, scene_model.bounding_radius[b], saved_v, saved_model.bounding_radius[b]);
+        return fmt::format(
+            "body {} (a polyhedron) has {} vertices and bounding radius {:.9g} m in the scene, {} and "
+            "{:.9g} m in the saved run",
+            b, v, scene_model.bounding_radius[b], saved_v, saved_model.bounding_radius[b]);
       }
     }
   }

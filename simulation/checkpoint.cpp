@@ -155,7 +155,8 @@ fs::path write_checkpoint(const fs::path& folder, const CheckpointView& checkpoi
     fs::remove(temporary, ignored);
     throw;
   }
-  if (::rename(temporary.c_str(), final_path.c_str()) != 0) io_error(final_path, "cannot rename the checkpoint into place");
+  if (::rename(temporary.c_str(), final_path.c_str()) != 0)
+    io_error(final_path, "cannot rename the checkpoint into place");
   sync_folder(folder);
 
   // Only now, with the new checkpoint durable, drop the old ones (and stray temporaries).
@@ -205,7 +206,8 @@ std::vector<fs::path> list_checkpoints(const fs::path& folder) {
     if (is_checkpoint_name(entry.path().filename().string())) files.push_back(entry.path());
   }
   // Zero-padded step numbers: names sort by step.
-  std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) { return a.filename() > b.filename(); });
+  std::sort(files.begin(), files.end(),
+            [](const fs::path& a, const fs::path& b) { return a.filename() > b.filename(); });
   return files;
 }
 

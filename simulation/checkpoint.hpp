@@ -47,7 +47,7 @@ struct CheckpointError : InputError {
 /// The run loop's bookkeeping, saved so that a resumed run continues its outputs with no step
 /// written twice or missing and ends with the same summary.
 struct RunProgress {
-  std::int64_t first_step = 0;         ///< state.step when the run started (the scene's initial step)
+  std::int64_t first_step = 0;  ///< state.step when the run started (the scene's initial step)
   /// s, state.time when the run started: the scene's initial time, or the saved state's for a run
   /// branched from another (rubble run SCENE --from DIR); the end step is counted from it.
   double first_time = 0.0;
@@ -64,18 +64,18 @@ struct RunProgress {
 /// The memory of the "until at rest" watcher (simulation/run_control.hpp, RestDetector), so that
 /// a resumed run stops at rest on the same step as an uninterrupted one.
 struct RestWatch {
-  bool armed = false;                  ///< the speed quantile has been above the rest speed
-  bool window_open = false;            ///< window_start is set
-  double window_start = 0.0;           ///< s, start of the current quiet window
-  double reference_coordination = 0.0; ///< Z at window_start
+  bool armed = false;                   ///< the speed quantile has been above the rest speed
+  bool window_open = false;             ///< window_start is set
+  double window_start = 0.0;            ///< s, start of the current quiet window
+  double reference_coordination = 0.0;  ///< Z at window_start
   /// Force-bearing contact pairs at window_start (sorted, lower id first).
   std::vector<std::pair<std::uint32_t, std::uint32_t>> reference_pairs;
-  std::uint8_t last_failure = 0;       ///< RestCondition that closed the last window
-  double last_speed = 0.0;             ///< m/s, last measured speed quantile
-  double last_coordination_change = 0.0;  ///< last |Z - Z0|
-  double last_contact_change = 0.0;    ///< last fraction of contacts changed
-  std::vector<std::pair<double, double>> history;   ///< (t, ln s) samples of the decay fit
-  double decay_window = 0.0;                        ///< s, span of the decay fit
+  std::uint8_t last_failure = 0;                   ///< RestCondition that closed the last window
+  double last_speed = 0.0;                         ///< m/s, last measured speed quantile
+  double last_coordination_change = 0.0;           ///< last |Z - Z0|
+  double last_contact_change = 0.0;                ///< last fraction of contacts changed
+  std::vector<std::pair<double, double>> history;  ///< (t, ln s) samples of the decay fit
+  double decay_window = 0.0;                       ///< s, span of the decay fit
 };
 
 /// Everything saved at a checkpoint.
@@ -87,10 +87,10 @@ struct Checkpoint {
   /// generators are the scene's grain generators, which run once when the scene is parsed), so
   /// the seed is the whole random-generator state; it is saved to rebuild the same grains.
   std::uint64_t seed = 1;
-  State state;          ///< positions, orientations, velocities, time, step
-  StepCarry carry;      ///< what the last step hands to the next (warm start, detection memory, held gravity)
-  RunProgress progress; ///< run-loop bookkeeping
-  RestWatch rest;       ///< the at-rest watcher's memory (until = "rest")
+  State state;           ///< positions, orientations, velocities, time, step
+  StepCarry carry;       ///< what the last step hands to the next (warm start, detection memory, held gravity)
+  RunProgress progress;  ///< run-loop bookkeeping
+  RestWatch rest;        ///< the at-rest watcher's memory (until = "rest")
 };
 
 /// A checkpoint's content by reference: what write_checkpoint saves, taken straight from the run
@@ -111,7 +111,8 @@ struct CheckpointView {
 CheckpointView checkpoint_view(const Checkpoint& checkpoint);
 
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).
-inline constexpr std::uint32_t checkpoint_format_version = 3;  // 2: held gravity field; 3: rest watcher on speeds, Z, contacts
+inline constexpr std::uint32_t checkpoint_format_version =
+    3;  // 2: held gravity field; 3: rest watcher on speeds, Z, contacts
 
 /// CRC-64/XZ of `bytes`, continuing from `crc` (pass the previous result to chain; 0 to start).
 std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);
@@ -167,9 +168,9 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
 
 /// A checkpoint found by load_newest_checkpoint.
 struct LoadedCheckpoint {
-  Checkpoint checkpoint;               ///< the newest valid one
-  std::filesystem::path file;          ///< its file
-  std::vector<std::string> rejected;   ///< why newer files were skipped (one message each)
+  Checkpoint checkpoint;              ///< the newest valid one
+  std::filesystem::path file;         ///< its file
+  std::vector<std::string> rejected;  ///< why newer files were skipped (one message each)
 };
 
 /// Loads the newest checkpoint of `folder` that passes every check, skipping (and reporting in

@@ -19,7 +19,7 @@ static_assert(std::endian::native == std::endian::little, "checkpoints are writt
 
 inline constexpr std::array<char, 8> magic{'R', 'U', 'B', 'B', 'L', 'E', 'C', 'K'};
 inline constexpr std::size_t header_bytes = 8 + 4 + 4 + 8;  // magic, version, reserved, payload size
-inline constexpr std::size_t trailer_bytes = 8;              // CRC-64
+inline constexpr std::size_t trailer_bytes = 8;             // CRC-64
 /// Bytes of one contact in the payload (put_contact).
 inline constexpr std::size_t contact_bytes = 4 * 4 + 8 * (3 + 9 + 1 + 3 + 3 + 9 + 4 + 3) + 1;
 
@@ -35,10 +35,8 @@ class Writer {
  public:
   explicit Writer(Sink& sink) : sink_(sink) {}
   template <typename T>
-    requires std::is_arithmetic_v<T>
-  void put(T value) {
-    sink_.append(reinterpret_cast<const std::byte*>(&value), sizeof(T));
-  }
+  requires std::is_arithmetic_v<T>
+  void put(T value) { sink_.append(reinterpret_cast<const std::byte*>(&value), sizeof(T)); }
   void put(const Vec3& v) {
     put(v.x());
     put(v.y());

@@ -60,8 +60,7 @@ class Reader {
   Reader(std::span<const std::byte> bytes, const std::string& source) : bytes_(bytes), source_(source) {}
 
   template <typename T>
-    requires std::is_arithmetic_v<T>
-  T get() {
+  requires std::is_arithmetic_v<T> T get() {
     need(sizeof(T), "a number");
     T value;
     std::memcpy(&value, bytes_.data() + offset_, sizeof(T));
@@ -249,9 +248,10 @@ std::uint64_t check_frame(std::span<const std::byte> bytes, const std::string& s
             : ""));
   }
   if (payload_size != bytes.size() - header_bytes - trailer_bytes) {
-    throw CheckpointError(fmt::format("{}: truncated or extended checkpoint: the header announces {} payload bytes, "
-                                      "the file holds {}",
-                                      source, payload_size, bytes.size() - header_bytes - trailer_bytes));
+    throw CheckpointError(
+        fmt::format("{}: truncated or extended checkpoint: the header announces {} payload bytes, "
+                    "the file holds {}",
+                    source, payload_size, bytes.size() - header_bytes - trailer_bytes));
   }
   std::uint64_t stored_crc = 0;
   std::memcpy(&stored_crc, bytes.data() + bytes.size() - trailer_bytes, trailer_bytes);

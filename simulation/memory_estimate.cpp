@@ -52,11 +52,13 @@ double available_memory() {
     const std::string path = line.substr(second + 1);
     if (path.empty() || path == "/" || path.find("..") != std::string::npos) continue;
     if (controllers.empty()) consider(cgroup_limit(("/sys/fs/cgroup" + path + "/memory.max").c_str()));
-    if (controllers == "memory") consider(cgroup_limit(("/sys/fs/cgroup/memory" + path + "/memory.limit_in_bytes").c_str()));
+    if (controllers == "memory")
+      consider(cgroup_limit(("/sys/fs/cgroup/memory" + path + "/memory.limit_in_bytes").c_str()));
   }
   for (const int resource : {RLIMIT_AS, RLIMIT_DATA}) {
     struct rlimit value {};
-    if (::getrlimit(resource, &value) == 0 && value.rlim_cur != RLIM_INFINITY) consider(static_cast<double>(value.rlim_cur));
+    if (::getrlimit(resource, &value) == 0 && value.rlim_cur != RLIM_INFINITY)
+      consider(static_cast<double>(value.rlim_cur));
   }
   return limit;
 }

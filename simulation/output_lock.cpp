@@ -45,7 +45,8 @@ OutputFolderLock OutputFolderLock::acquire(const fs::path& directory) {
   const int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
   if (fd < 0) {
     const int e = errno;
-    throw OutputFolderError(fmt::format("{}: cannot open the output folder's lock file: {}", file.string(), system_reason(e)));
+    throw OutputFolderError(
+        fmt::format("{}: cannot open the output folder's lock file: {}", file.string(), system_reason(e)));
   }
   int status = 0;
   do {

@@ -25,7 +25,8 @@ std::string size_keys(const PackOptions& a) {
     std::string item;
     while (std::getline(in, item, ',')) {
       const auto colon = item.find(':');
-      if (colon == std::string::npos) throw std::invalid_argument("--bins: expected DIAMETER:FRACTION pairs, got \"" + item + "\"");
+      if (colon == std::string::npos)
+        throw std::invalid_argument("--bins: expected DIAMETER:FRACTION pairs, got \"" + item + "\"");
       std::size_t used = 0;
       const double d = std::stod(item.substr(0, colon), &used);
       const double f = std::stod(item.substr(colon + 1));
@@ -41,14 +42,16 @@ std::string size_keys(const PackOptions& a) {
 
 std::string shape_keys(const PackOptions& a) {
   if (a.shape == "polyhedra") return "shape = \"polyhedron\"\n";
-  if (a.shape == "mix") return fmt::format("shape = \"mix\"\npolyhedron_fraction = {}\n", number(a.polyhedron_fraction));
+  if (a.shape == "mix")
+    return fmt::format("shape = \"mix\"\npolyhedron_fraction = {}\n", number(a.polyhedron_fraction));
   return "shape = \"sphere\"\n";
 }
 
 }  // namespace
 
 void check_pack_options(const PackOptions& a) {
-  const auto one_of = [](const std::string& flag, const std::string& value, std::initializer_list<const char*> allowed) {
+  const auto one_of = [](const std::string& flag, const std::string& value,
+                         std::initializer_list<const char*> allowed) {
     std::string list;
     for (const char* item : allowed) {
       if (value == item) return;
@@ -61,7 +64,8 @@ void check_pack_options(const PackOptions& a) {
   one_of("--distribution", a.distribution, {"volume-fraction", "uniform", "monodisperse", "bins"});
   one_of("--bin-fractions", a.bin_fractions, {"volume", "number"});
   if (a.count < 1) throw std::invalid_argument("--n: expected a number of grains >= 1");
-  if (a.distribution == "bins" && a.bins.empty()) throw std::invalid_argument("--bins: needed with --distribution bins");
+  if (a.distribution == "bins" && a.bins.empty())
+    throw std::invalid_argument("--bins: needed with --distribution bins");
   if (a.d_max < a.d_min && a.distribution != "monodisperse" && a.distribution != "bins") {
     throw std::invalid_argument("--dmax: expected dmax >= dmin");
   }
@@ -103,7 +107,8 @@ std::string pack_scene_text(const PackOptions& a) {
   if (!(end_time > 0.0)) {
     // Accretion: 7 characteristic times 1/sqrt(G rho) (the study's plateau starts near 4.4 of
     // them, 125 min); deposit: 20 fall times over the box height.
-    end_time = box ? 20.0 * std::sqrt(2.0 * 10.0 * a.d_max / a.g) : std::round(7.0 / std::sqrt(units::gravitational_constant * a.density));
+    end_time = box ? 20.0 * std::sqrt(2.0 * 10.0 * a.d_max / a.g)
+                   : std::round(7.0 / std::sqrt(units::gravitational_constant * a.density));
   }
   out << "[time]\ndt = \"auto\"\nend_time = " << number(end_time) << "\nuntil = \"rest\"\n\n";
   if (box) {
@@ -118,10 +123,12 @@ std::string pack_scene_text(const PackOptions& a) {
   if (a.kind == "cubic-grid") {
     const auto k = static_cast<std::uint64_t>(std::llround(std::cbrt(static_cast<double>(a.count))));
     if (k * k * k != a.count) {
-      throw std::invalid_argument(fmt::format("--n {} is not a cube k^3 (the cubic grid has n = k^3 grains; nearest: {} or {})",
-                                              a.count, k * k * k, (k + 1) * (k + 1) * (k + 1)));
+      throw std::invalid_argument(
+          fmt::format("--n {} is not a cube k^3 (the cubic grid has n = k^3 grains; nearest: {} or {})", a.count,
+                      k * k * k, (k + 1) * (k + 1) * (k + 1)));
     }
-    out << "[[generators]]\ntype = \"cubic_grid\"\ncells_per_side = " << k << "\ncell_size = " << number(a.d_max) << "\n";
+    out << "[[generators]]\ntype = \"cubic_grid\"\ncells_per_side = " << k << "\ncell_size = " << number(a.d_max)
+        << "\n";
   } else if (a.kind == "cloud") {
     out << "[[generators]]\ntype = \"sphere_cloud\"\ncount = " << a.count << "\n";
     if (a.cloud_radius > 0.0) {
@@ -139,7 +146,8 @@ std::string pack_scene_text(const PackOptions& a) {
     const double layers = std::ceil(static_cast<double>(a.count) / per_layer);
     const double h = 0.5 * width;
     out << "[[walls]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\n";
-    for (const auto& [px, py, nx, ny] : {std::array<double, 4>{-h, 0, 1, 0}, {h, 0, -1, 0}, {0, -h, 0, 1}, {0, h, 0, -1}}) {
+    for (const auto& [px, py, nx, ny] :
+         {std::array<double, 4>{-h, 0, 1, 0}, {h, 0, -1, 0}, {0, -h, 0, 1}, {0, h, 0, -1}}) {
       out << fmt::format("[[walls]]\ntype = \"plane\"\npoint = [{}, {}, 0.0]\nnormal = [{}, {}, 0.0]\n\n", number(px),
                          number(py), number(nx), number(ny));
     }

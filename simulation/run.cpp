@@ -24,7 +24,9 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using namespace run_support;
 
-double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+double seconds_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
 
 /// Steps between snapshots from the output options.
 std::int64_t snapshot_period(const RunOptions& run, std::int64_t total_steps) {
@@ -82,30 +84,30 @@ class RunSession {
   const Model& model_;
   const RunOptions& run_;
   const RunControl& control_;
-  const double h_;                      ///< s, the time step
-  const fs::path directory_;            ///< the output folder
-  const fs::path checkpoints_;          ///< its checkpoint folder
+  const double h_;              ///< s, the time step
+  const fs::path directory_;    ///< the output folder
+  const fs::path checkpoints_;  ///< its checkpoint folder
   /// The folder is ours before anything in it is opened or truncated (output_lock.hpp), and stays
   /// ours until the run file is closed: declared before file_, so it outlives it.
   OutputFolderLock lock_;
   State state_;
-  StepWorkspace workspace_;             ///< workspace_.carry goes from step to step and into checkpoints
+  StepWorkspace workspace_;  ///< workspace_.carry goes from step to step and into checkpoints
   RunProgress progress_;
   RunSummary summary_;
-  std::int64_t total_steps_ = 0;        ///< steps from the run's first time to its end time
+  std::int64_t total_steps_ = 0;  ///< steps from the run's first time to its end time
   std::vector<std::string_view> stage_names_;
   std::optional<RunFile> file_;
-  std::optional<VtkSeries> vtk_;        ///< [output] vtk = true: the ParaView series in DIR/vtk
-  RestDetector rest_;                   ///< until = "rest" (run_control.hpp)
+  std::optional<VtkSeries> vtk_;  ///< [output] vtk = true: the ParaView series in DIR/vtk
+  RestDetector rest_;             ///< until = "rest" (run_control.hpp)
   /// A new run file opens with a snapshot of the state it starts from, written once the VTK
   /// series (if any) exists too: a new run, or a resumed one whose run file had to be replaced.
   bool first_snapshot_pending_ = false;
   std::int64_t last_checkpoint_step_ = -1;
   std::size_t grain_count_ = 0;
-  double start_time_ = 0.0;             ///< s, simulated time when this session started
+  double start_time_ = 0.0;  ///< s, simulated time when this session started
   Clock::time_point start_, last_progress_, last_checkpoint_time_;
-  State before_;                        ///< the state at the start of the step, to locate a failure
-  std::optional<double> potential_;     ///< the grains' potential energy after the last step, J
+  State before_;                     ///< the state at the start of the step, to locate a failure
+  std::optional<double> potential_;  ///< the grains' potential energy after the last step, J
   double alert_distance_ = 0.0;
   bool tunnelling_warned_ = false;
 };
@@ -159,9 +161,10 @@ void RunSession::output(Write&& write) {
   } catch (const std::runtime_error& error) {
     const std::string resume =
         last_checkpoint_step_ >= 0
-            ? fmt::format("the last checkpoint (step {}) is intact: free space (or fix the cause), then go on with "
-                          "rubble run --resume {}",
-                          last_checkpoint_step_, directory_.string())
+            ? fmt::format(
+                  "the last checkpoint (step {}) is intact: free space (or fix the cause), then go on with "
+                  "rubble run --resume {}",
+                  last_checkpoint_step_, directory_.string())
             : std::string("no checkpoint was written yet: free space (or fix the cause) and run again");
     throw OutputError(fmt::format("writing the output failed at step {}: {}. The run stopped; {}", state_.step,
                                   short_reason(error.what()), resume));
@@ -180,8 +183,8 @@ void RunSession::open_new_run() {
 
 void RunSession::resume(const Checkpoint& from) {
   if (from.state.body_count() != model_.body_count()) {
-    throw CheckpointError(fmt::format("checkpoint of {} bodies, the scene has {}", from.state.body_count(),
-                                      model_.body_count()));
+    throw CheckpointError(
+        fmt::format("checkpoint of {} bodies, the scene has {}", from.state.body_count(), model_.body_count()));
   }
   state_ = from.state;
   workspace_.carry = from.carry;
@@ -192,9 +195,10 @@ void RunSession::resume(const Checkpoint& from) {
   // retention as "newest" nor picked by a later --resume.
   const std::vector<fs::path> superseded = set_aside_checkpoints_after(checkpoints_, state_.step);
   if (!superseded.empty() && control_.warnings) {
-    *control_.warnings << fmt::format("rubble run: note: {} later checkpoint(s) set aside as *.ckpt.superseded (the "
-                                      "run goes on from step {})\n",
-                                      superseded.size(), state_.step);
+    *control_.warnings << fmt::format(
+        "rubble run: note: {} later checkpoint(s) set aside as *.ckpt.superseded (the "
+        "run goes on from step {})\n",
+        superseded.size(), state_.step);
   }
   open_run_file_to_resume();
   if (file_->series_rows() != progress_.series_rows || file_->snapshot_count() != progress_.snapshots) {
@@ -282,8 +286,9 @@ void RunSession::write_checkpoint_now() {
   // Saved from the run's own objects through a view and streamed to the file: no copy of the
   // state, contacts or detection memory, so a checkpoint adds ~1 MiB to the run's working set.
   const RestWatch saved_rest = save_rest_watch(rest_);
-  const CheckpointView checkpoint{control_.scene_text, control_.scene_source, run_.end_time,     run_.seed,
-                                  state_,              workspace_.carry,      progress_,         saved_rest};
+  const CheckpointView checkpoint{
+      control_.scene_text, control_.scene_source, run_.end_time, run_.seed, state_, workspace_.carry, progress_,
+      saved_rest};
   summary_.last_checkpoint =
       write_checkpoint(checkpoints_, checkpoint, control_.checkpoints_kept, run_.output.keep_checkpoint_every);
   last_checkpoint_step_ = state_.step;
@@ -383,10 +388,10 @@ void RunSession::fail_numerically(Problem problem) {
   } catch (const std::runtime_error&) {
     // The numerical failure is the news; a run file that cannot be flushed is secondary.
   }
-  throw NumericalFailure(fmt::format(
-      "step {} (t = {:.6g} s), stage {}: body {}: {}. The run stopped; the last checkpoint ({}) is intact.", state_.step,
-      state_.time, stage, problem.body, problem.what,
-      last_checkpoint_step_ >= 0 ? fmt::format("step {}", last_checkpoint_step_) : std::string("none")));
+  throw NumericalFailure(
+      fmt::format("step {} (t = {:.6g} s), stage {}: body {}: {}. The run stopped; the last checkpoint ({}) is intact.",
+                  state_.step, state_.time, stage, problem.body, problem.what,
+                  last_checkpoint_step_ >= 0 ? fmt::format("step {}", last_checkpoint_step_) : std::string("none")));
 }
 
 /// A grain that moves further than the alert distance in one step can cross a wall or another

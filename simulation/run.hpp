@@ -37,8 +37,8 @@ struct RunControl {
   /// Where notes that matter even in a quiet run go (a stale lock taken over, a damaged run file
   /// set aside on resume); nullptr: nowhere.
   std::ostream* warnings = nullptr;
-  std::string scene_text;            ///< the scene as TOML, stored in the run file and the checkpoints
-  std::string scene_source;          ///< the name the scene was parsed under (saved for resuming)
+  std::string scene_text;    ///< the scene as TOML, stored in the run file and the checkpoints
+  std::string scene_source;  ///< the name the scene was parsed under (saved for resuming)
 
   /// Write a checkpoint every N steps (0: not by step count).
   std::int64_t checkpoint_every_steps = 0;
@@ -75,25 +75,25 @@ struct RunControl {
 
 /// What a run did.
 struct RunSummary {
-  std::int64_t first_step = 0;         ///< state.step when this session started (> 0 when resumed)
-  std::int64_t steps = 0;              ///< steps taken in this session
-  std::int64_t final_step = 0;         ///< state.step at the end
-  double simulated_time = 0.0;         ///< s
-  double wall_seconds = 0.0;           ///< s, this session
-  double mean_iterations = 0.0;        ///< NLGS sweeps per step, over the whole run
-  double max_residual = 0.0;           ///< largest end-of-step residual, over the whole run
-  std::int64_t unconverged_steps = 0;  ///< steps that hit max_iterations, over the whole run
-  std::int64_t snapshots = 0;          ///< snapshots in the run file
-  std::filesystem::path run_file;      ///< the HDF5 file written
-  bool interrupted = false;            ///< stopped by RunControl::stop_requested before the end
-  bool reached_rest = false;           ///< stopped because the grains were at rest (until = "rest")
-  std::string stop_reason;             ///< which criterion ended the run, in words (/run@stop_reason)
+  std::int64_t first_step = 0;            ///< state.step when this session started (> 0 when resumed)
+  std::int64_t steps = 0;                 ///< steps taken in this session
+  std::int64_t final_step = 0;            ///< state.step at the end
+  double simulated_time = 0.0;            ///< s
+  double wall_seconds = 0.0;              ///< s, this session
+  double mean_iterations = 0.0;           ///< NLGS sweeps per step, over the whole run
+  double max_residual = 0.0;              ///< largest end-of-step residual, over the whole run
+  std::int64_t unconverged_steps = 0;     ///< steps that hit max_iterations, over the whole run
+  std::int64_t snapshots = 0;             ///< snapshots in the run file
+  std::filesystem::path run_file;         ///< the HDF5 file written
+  bool interrupted = false;               ///< stopped by RunControl::stop_requested before the end
+  bool reached_rest = false;              ///< stopped because the grains were at rest (until = "rest")
+  std::string stop_reason;                ///< which criterion ended the run, in words (/run@stop_reason)
   std::filesystem::path last_checkpoint;  ///< the checkpoint written last (empty if none)
-  std::uint64_t state_hash = 0;        ///< state_hash() of the final state
+  std::uint64_t state_hash = 0;           ///< state_hash() of the final state
   /// s of wall time per stage of the step (Stage order), summed over this session's steps.
   std::array<double, static_cast<std::size_t>(Stage::count)> stage_seconds{};
-  double output_seconds = 0.0;         ///< s of wall time writing series, snapshots and checkpoints
-  std::int64_t polish_attempts = 0;    ///< Newton polishes of the contact problem (SolverOptions::polish_after)
+  double output_seconds = 0.0;       ///< s of wall time writing series, snapshots and checkpoints
+  std::int64_t polish_attempts = 0;  ///< Newton polishes of the contact problem (SolverOptions::polish_after)
 };
 
 /// The series row of a step that just ended in `state` (run.h5 /series, docs/output-format.md),

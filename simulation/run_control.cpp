@@ -134,10 +134,9 @@ RestCriterion automatic_rest_criterion(const SceneScales& scales, double speed, 
   RestCriterion criterion;
   criterion.coordination_change =
       coordination_change > 0.0 ? coordination_change
-      : scales.grains > 0
-          ? auto_rest_coordination_change *
-                std::sqrt(auto_rest_coordination_grains / static_cast<double>(scales.grains))
-          : auto_rest_coordination_change;
+      : scales.grains > 0       ? auto_rest_coordination_change *
+                                std::sqrt(auto_rest_coordination_grains / static_cast<double>(scales.grains))
+                          : auto_rest_coordination_change;
   if (speed > 0.0) {
     criterion.speed = speed;
   } else {
@@ -220,10 +219,14 @@ double contact_change_fraction(std::span<const std::pair<std::uint32_t, std::uin
 
 std::string_view rest_condition_name(RestCondition condition) {
   switch (condition) {
-    case RestCondition::speed: return "speed";
-    case RestCondition::coordination: return "coordination";
-    case RestCondition::contacts: return "contacts";
-    case RestCondition::none: break;
+    case RestCondition::speed:
+      return "speed";
+    case RestCondition::coordination:
+      return "coordination";
+    case RestCondition::contacts:
+      return "contacts";
+    case RestCondition::none:
+      break;
   }
   return "none";
 }
@@ -308,8 +311,8 @@ bool rest_starts_armed(const Model& model, const State& state) {
 }
 
 std::string describe_rest_criterion(const RestCriterion& criterion) {
-  const std::string which = criterion.quantile >= 1.0 ? std::string("max")
-                                                       : fmt::format("p{:.4g}", 100.0 * criterion.quantile);
+  const std::string which =
+      criterion.quantile >= 1.0 ? std::string("max") : fmt::format("p{:.4g}", 100.0 * criterion.quantile);
   return fmt::format("{}(|v| + |w| r) < {:.3g} m/s, |dZ| <= {:.3g}, contacts changed <= {:.3g}% for {:.4g} s", which,
                      criterion.speed, criterion.coordination_change, 100.0 * criterion.contact_change,
                      criterion.duration);
@@ -324,8 +327,9 @@ double eta_seconds(double elapsed_wall, double start_time, double time_now, doub
 std::optional<std::string> end_time_problem(double end_time, double start_time, double time_step) {
   const double steps = (end_time - start_time) / time_step;
   if (!std::isfinite(end_time) || !std::isfinite(steps) || steps > max_run_steps) {
-    return fmt::format("expected an end time at most 10^12 steps of dt = {:.6g} s after t = {:.6g} s (<= {:.6g} s), got {:.6g} s",
-                       time_step, start_time, start_time + max_run_steps * time_step, end_time);
+    return fmt::format(
+        "expected an end time at most 10^12 steps of dt = {:.6g} s after t = {:.6g} s (<= {:.6g} s), got {:.6g} s",
+        time_step, start_time, start_time + max_run_steps * time_step, end_time);
   }
   if (end_time < start_time + time_step) {
     return fmt::format("expected an end time at least one step of dt = {:.6g} s after t = {:.6g} s, got {:.6g} s",

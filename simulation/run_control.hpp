@@ -23,13 +23,13 @@ namespace rubble {
 
 /// The scales of a scene that the automatic time step and the rest threshold are built from.
 struct SceneScales {
-  std::size_t grains = 0;              ///< moving grains (walls excluded)
-  bool has_polyhedra = false;          ///< some grains are polyhedra
-  double total_mass = 0.0;             ///< M, kg, of the grains
-  double mean_mass = 0.0;              ///< kg per grain
-  double min_diameter = 0.0;           ///< d_min, m: smallest grain diameter (2 x bounding radius)
-  double cloud_radius = 0.0;           ///< R, m: max over grains of |x - x_cm| + bounding radius
-  double mean_density = 0.0;           ///< rho, kg/m^3: grain mass / grain volume
+  std::size_t grains = 0;      ///< moving grains (walls excluded)
+  bool has_polyhedra = false;  ///< some grains are polyhedra
+  double total_mass = 0.0;     ///< M, kg, of the grains
+  double mean_mass = 0.0;      ///< kg per grain
+  double min_diameter = 0.0;   ///< d_min, m: smallest grain diameter (2 x bounding radius)
+  double cloud_radius = 0.0;   ///< R, m: max over grains of |x - x_cm| + bounding radius
+  double mean_density = 0.0;   ///< rho, kg/m^3: grain mass / grain volume
   /// v_ref, m/s: the largest speed the scene's gravity can give a grain: free-fall velocity
   /// sqrt(2 G M / R) for self-gravity, sqrt(2 g H) (H: height of the grains along g plus d_min)
   /// for a uniform field, else the largest initial speed.
@@ -56,9 +56,9 @@ inline constexpr double auto_step_time_fraction = 0.01;
 
 /// The automatic time step and the numbers it came from.
 struct TimeStepChoice {
-  double time_step = 0.0;     ///< h, s
-  SceneScales scales{};       ///< what it was computed from
-  std::string rule;           ///< which bound decided, for messages: "travel" or "time"
+  double time_step = 0.0;  ///< h, s
+  SceneScales scales{};    ///< what it was computed from
+  std::string rule;        ///< which bound decided, for messages: "travel" or "time"
 };
 
 /// dt = "auto": h = min(0.01 d_min / v_ref, 0.01 T) (SceneScales gives v_ref and T): a grain at
@@ -110,11 +110,11 @@ inline constexpr double rest_contact_gap_fraction = 0.01;
 /// that time, and (3) the fraction of
 /// contacts created or broken since then stays below `contact_change`.
 struct RestCriterion {
-  double speed = 0.0;                ///< m/s, > 0: rest speed
+  double speed = 0.0;                    ///< m/s, > 0: rest speed
   double quantile = auto_rest_quantile;  ///< in (0, 1]: which quantile of the speeds (1: the fastest grain)
   double coordination_change = auto_rest_coordination_change;  ///< |Z - Z0| allowed, >= 0
-  double contact_change = auto_rest_contact_change;  ///< fraction of contacts changed allowed, in [0, 1]
-  double duration = 0.0;             ///< s of simulated time, >= 0
+  double contact_change = auto_rest_contact_change;            ///< fraction of contacts changed allowed, in [0, 1]
+  double duration = 0.0;                                       ///< s of simulated time, >= 0
 };
 
 /// The automatic rest criterion: speed 0.05 v_rest (SceneScales::rest_reference_velocity), duration 0.5 T,
@@ -164,12 +164,12 @@ std::string_view rest_condition_name(RestCondition condition);
 /// the next quiet step, with that step as reference). Rest is reported when a window has lasted
 /// criterion.duration.
 struct RestDetector {
-  RestCriterion criterion{};  ///< thresholds and duration
-  bool armed = false;         ///< the speed has been above the rest speed at least once
-  std::optional<double> window_start;  ///< s, start of the current quiet window (nullopt: none open)
+  RestCriterion criterion{};            ///< thresholds and duration
+  bool armed = false;                   ///< the speed has been above the rest speed at least once
+  std::optional<double> window_start;   ///< s, start of the current quiet window (nullopt: none open)
   double reference_coordination = 0.0;  ///< Z at window_start
   std::vector<std::pair<std::uint32_t, std::uint32_t>> reference_pairs;  ///< contact pairs at window_start
-  RestCondition last_failure = RestCondition::none;  ///< the condition that closed the last window
+  RestCondition last_failure = RestCondition::none;                      ///< the condition that closed the last window
   /// Last measured values (for the progress line and the run file).
   double last_speed = 0.0;                ///< m/s
   double last_coordination_change = 0.0;  ///< |Z - Z0|

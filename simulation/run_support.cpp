@@ -87,9 +87,10 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
     }
   }
   for (const Contact& c : workspace.carry.contacts) {
-    if (!c.delassus.allFinite() || !std::isfinite(c.normal_velocity_target) || !std::isfinite(c.normal_velocity_before)) {
-      problem = {contact_body(c), fmt::format("contact with body {}: non-finite Delassus block or target velocity",
-                                              c.id.body_a)};
+    if (!c.delassus.allFinite() || !std::isfinite(c.normal_velocity_target) ||
+        !std::isfinite(c.normal_velocity_before)) {
+      problem = {contact_body(c),
+                 fmt::format("contact with body {}: non-finite Delassus block or target velocity", c.id.body_a)};
       return "solver_preparation";
     }
   }
@@ -136,7 +137,8 @@ std::string short_reason(const std::string& what) {
   const auto at = what.find(marker);
   if (at == std::string::npos) return what;
   const auto end = what.find('\'', at + marker.size());
-  const std::string reason = what.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
+  const std::string reason =
+      what.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
   const auto stamp = what.find(": time = ");
   return (stamp == std::string::npos ? std::string() : what.substr(0, stamp) + ": ") + reason;
 }

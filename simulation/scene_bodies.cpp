@@ -40,8 +40,9 @@ PrescribedMotion parse_motion(const TableReader& entry) {
   }
   for (const std::string_view key : {"velocity", "angular_velocity"}) {
     if (entry.has(key)) {
-      entry.fail_key(key, "give either a motion table or a constant velocity and angular_velocity, not both (the "
-                          "table's rows hold the velocities)");
+      entry.fail_key(key,
+                     "give either a motion table or a constant velocity and angular_velocity, not both (the "
+                     "table's rows hold the velocities)");
     }
   }
   const auto* rows = node->as_array();
@@ -76,9 +77,9 @@ std::vector<Vec3> vector_list(const TableReader& entry, std::string_view key) {
   const toml::node* node = entry.get(key);
   const auto* array = node ? node->as_array() : nullptr;
   if (!array || array->size() < 4) {
-    entry.fail(node ? node : entry.anchor(), entry.key_path(key),
-               "expected an array of >= 4 points [[x, y, z], ...]" +
-                   (node ? ", got " + describe_node(*node) : std::string()));
+    entry.fail(
+        node ? node : entry.anchor(), entry.key_path(key),
+        "expected an array of >= 4 points [[x, y, z], ...]" + (node ? ", got " + describe_node(*node) : std::string()));
   }
   std::vector<Vec3> points;
   for (std::size_t i = 0; i < array->size(); ++i) {
@@ -97,7 +98,8 @@ std::vector<Vec3> vector_list(const TableReader& entry, std::string_view key) {
 /// The `faces` key: arrays of >= 3 indices into `vertex_count` vertices.
 std::vector<std::vector<int>> face_list(const TableReader& entry, std::size_t vertex_count) {
   const toml::node* faces_node = entry.get("faces");
-  if (!faces_node) entry.missing("faces", "an array of faces, each an array of vertex indices (0-based, CCW from outside)");
+  if (!faces_node)
+    entry.missing("faces", "an array of faces, each an array of vertex indices (0-based, CCW from outside)");
   std::vector<std::vector<int>> faces;
   const auto* faces_array = faces_node->as_array();
   if (!faces_array) entry.fail(faces_node, entry.key_path("faces"), "expected an array of arrays of vertex indices");
@@ -109,8 +111,9 @@ std::vector<std::vector<int>> face_list(const TableReader& entry, std::size_t ve
     for (std::size_t k = 0; k < face->size(); ++k) {
       const auto* index = face->get(k)->as_integer();
       if (!index || index->get() < 0 || index->get() >= static_cast<std::int64_t>(vertex_count)) {
-        entry.fail(face->get(k), key, "expected vertex indices in [0, " + std::to_string(vertex_count - 1) +
-                                          "], got " + describe_node(*face->get(k)));
+        entry.fail(face->get(k), key,
+                   "expected vertex indices in [0, " + std::to_string(vertex_count - 1) + "], got " +
+                       describe_node(*face->get(k)));
       }
       indices.push_back(static_cast<int>(index->get()));
     }
@@ -164,8 +167,8 @@ ConvexPolyhedron random_polyhedron_body(const SceneDraft& draft, const TableRead
 /// faces, or random. position/orientation place the file's (or the listed vertices') frame;
 /// for a random polyhedron, they are the centroid and the principal frame.
 void parse_polyhedron_body(const SceneDraft& draft, const TableReader& entry, GrainSpec& grain) {
-  const std::vector<std::string_view> placement = {"shape",    "position", "orientation", "velocity",
-                                                   "angular_velocity", "material", "driven",      "motion"};
+  const std::vector<std::string_view> placement = {
+      "shape", "position", "orientation", "velocity", "angular_velocity", "material", "driven", "motion"};
   const auto with = [&](std::initializer_list<std::string_view> more) {
     std::vector<std::string_view> keys = placement;
     keys.insert(keys.end(), more);
@@ -188,8 +191,9 @@ void parse_polyhedron_body(const SceneDraft& draft, const TableReader& entry, Gr
     entry.allow_only(with({"vertices", "faces", "convexity_tolerance"}), "for a polyhedron given by its vertices");
     shape = polyhedron_from_vertices(entry, pose);
   } else {
-    entry.allow_only(with({"diameter", "shape_seed", "min_vertices", "max_vertices", "min_elongation", "min_platyness"}),
-                     "for a random polyhedron");
+    entry.allow_only(
+        with({"diameter", "shape_seed", "min_vertices", "max_vertices", "min_elongation", "min_platyness"}),
+        "for a random polyhedron");
     shape = random_polyhedron_body(draft, entry);
   }
   grain.position = position + orientation * pose.centroid;
@@ -239,9 +243,9 @@ void parse_walls(SceneDraft& draft) {
       }
       wall.normal = normal / norm;
     } else {
-      entry.allow_only({"type", "center", "half_extents", "orientation", "material", "velocity", "angular_velocity",
-                        "motion"},
-                       "for a wall of type = \"box\"");
+      entry.allow_only(
+          {"type", "center", "half_extents", "orientation", "material", "velocity", "angular_velocity", "motion"},
+          "for a wall of type = \"box\"");
       wall.is_plane = false;
       wall.position = entry.vec3("center", coordinate());
       wall.half_extents = entry.vec3("half_extents", length());
@@ -249,7 +253,8 @@ void parse_walls(SceneDraft& draft) {
     }
     wall.material = material_of(draft, entry);
     // A wall moves when given a velocity, an angular velocity or a motion table.
-    if (entry.has("motion") || entry.has("velocity") || entry.has("angular_velocity")) wall.motion = parse_motion(entry);
+    if (entry.has("motion") || entry.has("velocity") || entry.has("angular_velocity"))
+      wall.motion = parse_motion(entry);
     draft.walls.push_back(wall);
   }
 }

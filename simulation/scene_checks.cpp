@@ -67,8 +67,9 @@ void check_polyhedron_inside_wall(const SceneDraft& draft, const WallSpec& wall,
     if (bad) {
       draft.root.fail(grain.origin.node, grain_key(grain.origin),
                       grain_label(grain.origin) + " (a polyhedron centred at " + show_vec3(grain.position) +
-                          ") has a vertex at " + show_vec3(x) + (wall.is_plane ? " behind plane wall " : " inside box wall ") +
-                          wall.path + ": expected every grain entirely on the inner side of the walls");
+                          ") has a vertex at " + show_vec3(x) +
+                          (wall.is_plane ? " behind plane wall " : " inside box wall ") + wall.path +
+                          ": expected every grain entirely on the inner side of the walls");
     }
   }
 }
@@ -153,7 +154,8 @@ void check_grains_do_not_overlap(const SceneDraft& draft) {
             if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
               draft.root.fail(b.origin.node, grain_key(b.origin),
                               grain_label(b.origin) + " overlaps " + grain_name(a.origin) + " by " +
-                                  show_short(overlap) + " m: expected grains not to interpenetrate at the start (at most " +
+                                  show_short(overlap) +
+                                  " m: expected grains not to interpenetrate at the start (at most " +
                                   show(100 * allowed_initial_overlap) + "% of the smaller radius)");
             }
           }

@@ -21,8 +21,8 @@ struct AccretionVariant {
   std::string_view shape;   ///< the generator's shape line ("" for the default, spheres)
 };
 
-constexpr AccretionVariant spheres_variant{
-    "the built-in default scene (`rubble run` without a scene file).", "10^3 spheres of diameter", "accretion-1000", ""};
+constexpr AccretionVariant spheres_variant{"the built-in default scene (`rubble run` without a scene file).",
+                                           "10^3 spheres of diameter", "accretion-1000", ""};
 
 // The paper's random polyhedra (10-70 vertices, elongation and platyness in [0.5, 1],
 // circumscribed diameter 7.5-10 m): about 90 s of CPU to rest.
@@ -94,8 +94,10 @@ distribution = "uniform_volume_fraction"
 
 std::string default_scene_toml(DefaultScene variant) {
   switch (variant) {
-    case DefaultScene::spheres: return accretion_scene_text(spheres_variant);
-    case DefaultScene::polyhedra: return accretion_scene_text(polyhedra_variant);
+    case DefaultScene::spheres:
+      return accretion_scene_text(spheres_variant);
+    case DefaultScene::polyhedra:
+      return accretion_scene_text(polyhedra_variant);
   }
   throw std::invalid_argument("default_scene_toml: unknown DefaultScene value");
 }

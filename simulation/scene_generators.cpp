@@ -17,7 +17,8 @@ SizeRange parse_size_bins(const TableReader& entry) {
   const toml::node* node = entry.get("bins");
   if (!node) entry.missing("bins", "an array of [diameter, fraction] pairs, e.g. [[0.01, 0.5], [0.02, 0.5]]");
   const auto* array = node->as_array();
-  if (!array || array->empty()) entry.fail(node, entry.key_path("bins"), "expected a nonempty array of [diameter, fraction] pairs");
+  if (!array || array->empty())
+    entry.fail(node, entry.key_path("bins"), "expected a nonempty array of [diameter, fraction] pairs");
   std::vector<SizeBin> bins;
   double total = 0.0;
   for (std::size_t i = 0; i < array->size(); ++i) {
@@ -61,8 +62,8 @@ SizeRange parse_sizes(const TableReader& entry) {
   sizes.radius_min = entry.number("radius_min", positive());
   sizes.radius_max = entry.number("radius_max", positive());
   if (sizes.radius_max < sizes.radius_min) {
-    entry.fail_key("radius_max", "expected radius_max >= radius_min (" + show(sizes.radius_min) +
-                                     "), got " + show(sizes.radius_max));
+    entry.fail_key("radius_max",
+                   "expected radius_max >= radius_min (" + show(sizes.radius_min) + "), got " + show(sizes.radius_max));
   }
   sizes.distribution =
       law == "uniform_radius" ? SizeDistribution::uniform_radius : SizeDistribution::uniform_volume_fraction;
@@ -83,8 +84,8 @@ void check_memory(const SceneDraft& draft, const TableReader& entry, std::string
 
 /// The keys a generator of this type and shape takes, for the unknown-key check.
 std::vector<std::string_view> generator_keys(const std::string& type, const std::string& shape) {
-  std::vector<std::string_view> allowed = {"type",     "shape",     "distribution", "radius_min", "radius_max",
-                                           "radius",   "bins",      "bin_fractions", "material",  "velocity"};
+  std::vector<std::string_view> allowed = {"type",   "shape", "distribution",  "radius_min", "radius_max",
+                                           "radius", "bins",  "bin_fractions", "material",   "velocity"};
   if (shape != "sphere") {
     allowed.insert(allowed.end(), {"min_vertices", "max_vertices", "min_elongation", "min_platyness"});
   }
@@ -141,8 +142,8 @@ std::vector<PackedGrain> pack_cubic_grid(const GeneratorEntry& g) {
   const TableReader& entry = g.entry;
   CubicGridOptions options;
   options.cells_per_side = static_cast<std::uint64_t>(entry.integer("cells_per_side", 1, 464));
-  check_memory(g.draft, entry, "cells_per_side", options.cells_per_side * options.cells_per_side * options.cells_per_side,
-               g.polyhedra);
+  check_memory(g.draft, entry, "cells_per_side",
+               options.cells_per_side * options.cells_per_side * options.cells_per_side, g.polyhedra);
   options.sizes = parse_sizes(entry);
   options.cell_size = entry.number_or("cell_size", 0.0, length_or_zero());
   if (options.cell_size > 0.0 && options.cell_size < 2.0 * options.sizes.radius_max) {
@@ -170,8 +171,7 @@ std::vector<PackedGrain> pack_sphere_cloud(const GeneratorEntry& g) {
                                          show(options.sizes.radius_max) + " m), got " + show(options.radius));
     }
   } else {
-    options.radius =
-        sphere_cloud_radius(options.count, options.sizes, entry.number("volume_fraction", open(0.0, 1.0)));
+    options.radius = sphere_cloud_radius(options.count, options.sizes, entry.number("volume_fraction", open(0.0, 1.0)));
     options.radius = std::max(options.radius, options.sizes.radius_max);
   }
   return sphere_cloud(options, g.seed);
@@ -237,7 +237,8 @@ void parse_generators(SceneDraft& draft) {
     const TableReader& entry = entries[index];
     const std::string type = entry.choice("type", {"box_deposit", "cubic_grid", "sphere_cloud"});
     const std::string shape = entry.optional_choice("shape", {"sphere", "polyhedron", "mix"}).value_or("sphere");
-    entry.allow_only(generator_keys(type, shape), "for a generator of type = \"" + type + "\" and shape = \"" + shape + "\"");
+    entry.allow_only(generator_keys(type, shape),
+                     "for a generator of type = \"" + type + "\" and shape = \"" + shape + "\"");
     const GeneratorEntry generator{draft, entry, shape != "sphere", derive_seed(draft.scene.run.seed, index)};
     std::vector<PackedGrain> packed;
     try {

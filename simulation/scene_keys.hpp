@@ -78,8 +78,8 @@ void read_section_keys(const TableReader& table, const std::vector<SectionKey<Op
     } else if (auto* const* integer = std::get_if<int*>(&option)) {
       **integer = static_cast<int>(table.integer_or(key.name, **integer, key.low, key.high));
     } else if (auto* const* count = std::get_if<std::size_t*>(&option)) {
-      **count = static_cast<std::size_t>(
-          table.integer_or(key.name, static_cast<std::int64_t>(**count), key.low, key.high));
+      **count =
+          static_cast<std::size_t>(table.integer_or(key.name, static_cast<std::int64_t>(**count), key.low, key.high));
     } else if (auto* const* wide = std::get_if<std::int64_t*>(&option)) {
       **wide = table.integer_or(key.name, **wide, key.low, key.high);
     } else if (auto* const* flag = std::get_if<bool*>(&option)) {

@@ -25,9 +25,9 @@ inline constexpr double allowed_initial_overlap = 0.01;
 
 /// Where a grain came from, for messages about it.
 struct GrainOrigin {
-  int body_entry = -1;       ///< index in [[bodies]], or -1
-  int generator = -1;        ///< index in [[generators]], or -1
-  std::uint64_t ordinal = 0; ///< grain number within its generator
+  int body_entry = -1;               ///< index in [[bodies]], or -1
+  int generator = -1;                ///< index in [[generators]], or -1
+  std::uint64_t ordinal = 0;         ///< grain number within its generator
   const toml::node* node = nullptr;  ///< the entry's table
 };
 
@@ -47,9 +47,9 @@ struct GrainSpec {
 /// A wall to add.
 struct WallSpec {
   bool is_plane = true;
-  Vec3 position = Vec3::Zero();       ///< plane point or box centre
-  Vec3 normal = Vec3::UnitZ();        ///< unit, plane only
-  Vec3 half_extents = Vec3::Zero();   ///< box only
+  Vec3 position = Vec3::Zero();      ///< plane point or box centre
+  Vec3 normal = Vec3::UnitZ();       ///< unit, plane only
+  Vec3 half_extents = Vec3::Zero();  ///< box only
   Quat orientation = Quat::Identity();
   int material = 0;
   std::optional<PrescribedMotion> motion;  ///< set for a moving wall

@@ -54,11 +54,21 @@ std::string toml_string(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char buffer[8];
@@ -76,8 +86,7 @@ std::string Range::describe() const {
   const bool has_low = low > -infinity;
   const bool has_high = high < infinity;
   if (has_low && has_high) {
-    return "in " + std::string(low_closed ? "[" : "(") + show(low) + ", " + show(high) +
-           (high_closed ? "]" : ")");
+    return "in " + std::string(low_closed ? "[" : "(") + show(low) + ", " + show(high) + (high_closed ? "]" : ")");
   }
   if (has_low) return std::string(low_closed ? ">= " : "> ") + show(low);
   if (has_high) return std::string(high_closed ? "<= " : "< ") + show(high);
@@ -91,13 +100,20 @@ std::string expected_number(const Range& range) {
 
 std::string describe_node(const toml::node& node) {
   switch (node.type()) {
-    case toml::node_type::string: return "the string \"" + std::string(node.as_string()->get()) + "\"";
-    case toml::node_type::integer: return std::to_string(node.as_integer()->get());
-    case toml::node_type::floating_point: return show(node.as_floating_point()->get());
-    case toml::node_type::boolean: return node.as_boolean()->get() ? "true" : "false";
-    case toml::node_type::array: return "an array of " + std::to_string(node.as_array()->size()) + " elements";
-    case toml::node_type::table: return "a table";
-    default: return "a date/time";
+    case toml::node_type::string:
+      return "the string \"" + std::string(node.as_string()->get()) + "\"";
+    case toml::node_type::integer:
+      return std::to_string(node.as_integer()->get());
+    case toml::node_type::floating_point:
+      return show(node.as_floating_point()->get());
+    case toml::node_type::boolean:
+      return node.as_boolean()->get() ? "true" : "false";
+    case toml::node_type::array:
+      return "an array of " + std::to_string(node.as_array()->size()) + " elements";
+    case toml::node_type::table:
+      return "a table";
+    default:
+      return "a date/time";
   }
 }
 
@@ -190,7 +206,8 @@ namespace {
 /// `one of "a", "b"` for messages about a choice of words.
 std::string one_of(std::initializer_list<std::string_view> words) {
   std::string expected = "one of";
-  for (std::string_view word : words) expected += std::string(word == *words.begin() ? " " : ", ") + "\"" + std::string(word) + "\"";
+  for (std::string_view word : words)
+    expected += std::string(word == *words.begin() ? " " : ", ") + "\"" + std::string(word) + "\"";
   return expected;
 }
 
@@ -243,8 +260,8 @@ std::vector<TableReader> TableReader::tables(std::string_view key) const {
   if (!node) return result;
   const auto* array = node->as_array();
   if (!array) {
-    fail(node, key_path(key), "expected an array of tables ([[" + std::string(key) + "]] entries), got " +
-                                  describe_node(*node));
+    fail(node, key_path(key),
+         "expected an array of tables ([[" + std::string(key) + "]] entries), got " + describe_node(*node));
   }
   for (std::size_t i = 0; i < array->size(); ++i) {
     const toml::node* element = array->get(i);

@@ -41,9 +41,7 @@ struct Range {
   bool low_closed = true;
   bool high_closed = true;
 
-  bool contains(double x) const {
-    return (low_closed ? x >= low : x > low) && (high_closed ? x <= high : x < high);
-  }
+  bool contains(double x) const { return (low_closed ? x >= low : x > low) && (high_closed ? x <= high : x < high); }
   /// "> 0", "in [0, 1]", "" for any number.
   std::string describe() const;
 };
@@ -159,7 +157,8 @@ class TableReader {
 
   /// An array of N finite numbers.
   template <int N>
-  std::optional<Eigen::Matrix<double, N, 1>> optional_vector(std::string_view key, const Range& range = any_number()) const {
+  std::optional<Eigen::Matrix<double, N, 1>> optional_vector(std::string_view key,
+                                                             const Range& range = any_number()) const {
     const toml::node* node = get(key);
     if (!node) return std::nullopt;
     const std::string expected = "an array of " + std::to_string(N) + " numbers";
@@ -169,8 +168,8 @@ class TableReader {
     }
     Eigen::Matrix<double, N, 1> value;
     for (int i = 0; i < N; ++i) {
-      value[i] = number_of(*array->get(static_cast<std::size_t>(i)),
-                           key_path(key) + "[" + std::to_string(i) + "]", range);
+      value[i] =
+          number_of(*array->get(static_cast<std::size_t>(i)), key_path(key) + "[" + std::to_string(i) + "]", range);
     }
     return value;
   }
@@ -179,9 +178,7 @@ class TableReader {
     if (!value) missing(key, "an array of 3 numbers [x, y, z]");
     return *value;
   }
-  Vec3 vec3_or(std::string_view key, const Vec3& fallback) const {
-    return optional_vector<3>(key).value_or(fallback);
-  }
+  Vec3 vec3_or(std::string_view key, const Vec3& fallback) const { return optional_vector<3>(key).value_or(fallback); }
   /// A rotation as a quaternion [w, x, y, z], normalised (must not be zero).
   Quat orientation_or_identity(std::string_view key) const;
 

@@ -22,8 +22,8 @@ void check_step_count(const SceneDraft& draft, const TableReader& time) {
   constexpr double max_steps = max_run_steps;
   if (draft.scene.run.end_time / integrator.time_step > max_steps) {
     time.fail_key("dt", "expected at most 10^12 steps (dt >= end_time / 1e12 = " +
-                            show_short(draft.scene.run.end_time / max_steps) + " s), got dt = " +
-                            show(integrator.time_step) + origin);
+                            show_short(draft.scene.run.end_time / max_steps) +
+                            " s), got dt = " + show(integrator.time_step) + origin);
   }
   if (integrator.time_step > draft.scene.run.end_time) {
     time.fail_key("dt", "expected dt <= end_time (" + show(draft.scene.run.end_time) + " s), got " +
@@ -56,8 +56,9 @@ void parse_rest_criterion(const TableReader& time, RunOptions& run) {
 /// [gravity] type = "direct" or "tree": self-gravity (gravity/), held for evaluate_every steps.
 void parse_self_gravity(const TableReader& table, bool tree, GravitySettings& gravity) {
   if (tree) {
-    table.allow_only({"type", "G", "softening", "theta", "order", "leaf_size", "group_size", "evaluate_every", "backend"},
-                     "for [gravity] type = \"tree\"");
+    table.allow_only(
+        {"type", "G", "softening", "theta", "order", "leaf_size", "group_size", "evaluate_every", "backend"},
+        "for [gravity] type = \"tree\"");
   } else {
     table.allow_only({"type", "G", "softening", "evaluate_every", "backend"}, "for [gravity] type = \"direct\"");
   }

@@ -22,7 +22,8 @@ using scene_detail::toml_string;
 std::string motion_keys(const Model& model, const State& state, std::size_t body) {
   std::string out;
   if (model.is_driven(body) && model.is_grain(body)) out += "driven = true\n";
-  if (!model.is_driven(body) || model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[body])].time.size() == 1) {
+  if (!model.is_driven(body) ||
+      model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[body])].time.size() == 1) {
     const RigidVelocity v = model.is_driven(body) ? model.driven_velocity(body, state.time)
                                                   : RigidVelocity{state.velocity[body], state.angular_velocity[body]};
     if (!model.is_grain(body) && v.linear == Vec3::Zero() && v.angular == Vec3::Zero()) return out;
@@ -90,11 +91,15 @@ void write_self_gravity(std::ostream& out, const GravitySettings& gravity) {
 void write_gravity(std::ostream& out, const GravitySettings& gravity) {
   out << "[gravity]\n";
   switch (gravity.kind) {
-    case GravitySettings::Kind::none: out << "type = \"none\"\n\n"; break;
+    case GravitySettings::Kind::none:
+      out << "type = \"none\"\n\n";
+      break;
     case GravitySettings::Kind::uniform:
       out << "type = \"uniform\"\nacceleration = " << format_vec3(gravity.acceleration) << "\n\n";
       break;
-    case GravitySettings::Kind::self: write_self_gravity(out, gravity); break;
+    case GravitySettings::Kind::self:
+      write_self_gravity(out, gravity);
+      break;
     case GravitySettings::Kind::central: {
       const CentralField& central = gravity.central;
       out << "type = \"central\"\n";
@@ -165,7 +170,9 @@ void write_body(std::ostream& out, const Model& model, const State& state, std::
       }
       out << "\n" << motion_keys(model, state, body);
       break;
-    case ShapeKind::polyhedron: write_polyhedron(out, model, state, body); break;
+    case ShapeKind::polyhedron:
+      write_polyhedron(out, model, state, body);
+      break;
   }
   out << "material = " << toml_string(model.materials[static_cast<std::size_t>(model.material[body])].name) << "\n";
 }

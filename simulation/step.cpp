@@ -51,7 +51,8 @@ double self_gravity_accelerations(const Model& model, const State& state, const 
 }
 
 /// Work of the external forces over the displacement `scale` * `velocity` of every body, J.
-double work_of_forces(const Model& model, const std::vector<Vec3>& force, const std::vector<Vec3>& velocity, double scale) {
+double work_of_forces(const Model& model, const std::vector<Vec3>& force, const std::vector<Vec3>& velocity,
+                      double scale) {
   double work = 0.0;
   if (velocity.empty()) return work;
   for (std::size_t b = 0; b < model.body_count(); ++b) {
@@ -143,18 +144,30 @@ double gravitational_potential_energy(const Model& model, const State& state, co
 
 std::string_view stage_name(Stage stage) {
   switch (stage) {
-    case Stage::drift_to_midpoint: return "drift_to_midpoint";
-    case Stage::external_forces: return "external_forces";
-    case Stage::free_velocity: return "free_velocity";
-    case Stage::store_impulses: return "store_impulses";
-    case Stage::broad_phase: return "broad_phase";
-    case Stage::narrow_phase: return "narrow_phase";
-    case Stage::match_contacts: return "match_contacts";
-    case Stage::solver_preparation: return "solver_preparation";
-    case Stage::nlgs_sweeps: return "nlgs_sweeps";
-    case Stage::overlap_recovery: return "overlap_recovery";
-    case Stage::finish_step: return "finish_step";
-    case Stage::count: break;
+    case Stage::drift_to_midpoint:
+      return "drift_to_midpoint";
+    case Stage::external_forces:
+      return "external_forces";
+    case Stage::free_velocity:
+      return "free_velocity";
+    case Stage::store_impulses:
+      return "store_impulses";
+    case Stage::broad_phase:
+      return "broad_phase";
+    case Stage::narrow_phase:
+      return "narrow_phase";
+    case Stage::match_contacts:
+      return "match_contacts";
+    case Stage::solver_preparation:
+      return "solver_preparation";
+    case Stage::nlgs_sweeps:
+      return "nlgs_sweeps";
+    case Stage::overlap_recovery:
+      return "overlap_recovery";
+    case Stage::finish_step:
+      return "finish_step";
+    case Stage::count:
+      break;
   }
   return "unknown";
 }

@@ -22,10 +22,10 @@ namespace rubble {
 /// exact 1/r^2 for |x - c| >> eps, finite (and going linearly to 0) at the centre, so a grain
 /// reaching c meets no singular force.
 struct CentralField {
-  Vec3 centre = Vec3::Zero();  ///< c, m
-  double mass = 0.0;           ///< M, kg
+  Vec3 centre = Vec3::Zero();                ///< c, m
+  double mass = 0.0;                         ///< M, kg
   double G = units::gravitational_constant;  ///< gravitational constant, m^3 kg^-1 s^-2
-  double softening = 0.0;      ///< eps, m (0: the exact point-mass field)
+  double softening = 0.0;                    ///< eps, m (0: the exact point-mass field)
 };
 
 /// The acceleration of the central field at `position`.
@@ -34,10 +34,10 @@ Vec3 central_acceleration(const CentralField& field, const Vec3& position);
 /// Which gravity acts on the grains.
 struct GravitySettings {
   enum class Kind { none, uniform, self, central };
-  Kind kind = Kind::none;                          ///< none, a uniform field, self-gravity or a central mass
-  Vec3 acceleration = Vec3::Zero();                ///< m/s^2, for Kind::uniform
-  gravity::GravityOptions self_gravity{};          ///< for Kind::self (direct or tree, G, theta, order)
-  CentralField central{};                          ///< for Kind::central
+  Kind kind = Kind::none;                  ///< none, a uniform field, self-gravity or a central mass
+  Vec3 acceleration = Vec3::Zero();        ///< m/s^2, for Kind::uniform
+  gravity::GravityOptions self_gravity{};  ///< for Kind::self (direct or tree, G, theta, order)
+  CentralField central{};                  ///< for Kind::central
   /// For Kind::self: the field is evaluated every `evaluate_every` steps and held in between
   /// (StepCarry::held_gravity); 1 = every step, the exact scheme.
   int evaluate_every = 1;
@@ -57,16 +57,28 @@ struct StepOptions {
 double gravitational_potential_energy(const Model& model, const State& state, const GravitySettings& gravity);
 
 /// The stages of a step, in execution order (step.cpp), for timing reports.
-enum class Stage { drift_to_midpoint, external_forces, free_velocity, store_impulses, broad_phase, narrow_phase,
-                   match_contacts, solver_preparation, nlgs_sweeps, overlap_recovery, finish_step, count };
+enum class Stage {
+  drift_to_midpoint,
+  external_forces,
+  free_velocity,
+  store_impulses,
+  broad_phase,
+  narrow_phase,
+  match_contacts,
+  solver_preparation,
+  nlgs_sweeps,
+  overlap_recovery,
+  finish_step,
+  count
+};
 /// Printable name of a stage.
 std::string_view stage_name(Stage stage);
 
 /// What a step did.
 struct StepReport {
-  std::size_t contacts = 0;          ///< contact points found (gap < alert distance)
-  SolverStats solver{};              ///< iterations, residual
-  OverlapRecoveryStats overlap{};    ///< overlaps beyond the allowed depth, removed by displacement
+  std::size_t contacts = 0;        ///< contact points found (gap < alert distance)
+  SolverStats solver{};            ///< iterations, residual
+  OverlapRecoveryStats overlap{};  ///< overlaps beyond the allowed depth, removed by displacement
   /// Gravitational potential energy of the grains at the end of the step, J (self-gravity: from
   /// the step's own evaluation at q_m, carried to q_{n+1} by the forces' work; uniform: -sum m g.x).
   /// Valid when potential_energy_known; otherwise the field was held (GravitySettings::

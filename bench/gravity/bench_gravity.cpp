@@ -42,8 +42,8 @@ std::vector<double> parse_list(const std::string& s) {
 
 /// Uniform sphere of radius 1 and total mass 1, or a Plummer sphere (scale radius 1, truncated at
 /// 20 scale radii) sampled by inverting its cumulative mass M(r) = r^3 / (1 + r^2)^{3/2}.
-void make_particles(const std::string& dist, std::size_t n, std::uint64_t seed,
-                    std::vector<double>& pos, std::vector<double>& mass) {
+void make_particles(const std::string& dist, std::size_t n, std::uint64_t seed, std::vector<double>& pos,
+                    std::vector<double>& mass) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   pos.resize(3 * n);
@@ -73,22 +73,19 @@ double cpu_now() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
 double percentile(std::vector<double> v, double p) {
   std::sort(v.begin(), v.end());
-  const auto k = static_cast<std::size_t>(std::clamp(p * static_cast<double>(v.size() - 1), 0.0,
-                                                     static_cast<double>(v.size() - 1)));
+  const auto k = static_cast<std::size_t>(
+      std::clamp(p * static_cast<double>(v.size() - 1), 0.0, static_cast<double>(v.size() - 1)));
   return v[k];
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2},
-      threads{1, 2};
+  std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2}, threads{1, 2};
   int reps = 3, leaf_size = g::GravityOptions{}.leaf_size, group_size = g::GravityOptions{}.group_size;
   std::size_t subset = 1000;
   std::string dist = "uniform", csv_path;
@@ -102,17 +99,28 @@ int main(int argc, char** argv) {
       }
       return argv[++a];
     };
-    if (arg == "--n") ns = parse_list(next());
-    else if (arg == "--theta") thetas = parse_list(next());
-    else if (arg == "--order") orders = parse_list(next());
-    else if (arg == "--threads") threads = parse_list(next());
-    else if (arg == "--reps") reps = std::stoi(next());
-    else if (arg == "--leaf-size") leaf_size = std::stoi(next());
-    else if (arg == "--group-size") group_size = std::stoi(next());
-    else if (arg == "--subset") subset = std::stoul(next());
-    else if (arg == "--dist") dist = next();
-    else if (arg == "--csv") csv_path = next();
-    else if (arg == "--direct-rate") direct_rate = true;
+    if (arg == "--n")
+      ns = parse_list(next());
+    else if (arg == "--theta")
+      thetas = parse_list(next());
+    else if (arg == "--order")
+      orders = parse_list(next());
+    else if (arg == "--threads")
+      threads = parse_list(next());
+    else if (arg == "--reps")
+      reps = std::stoi(next());
+    else if (arg == "--leaf-size")
+      leaf_size = std::stoi(next());
+    else if (arg == "--group-size")
+      group_size = std::stoi(next());
+    else if (arg == "--subset")
+      subset = std::stoul(next());
+    else if (arg == "--dist")
+      dist = next();
+    else if (arg == "--csv")
+      csv_path = next();
+    else if (arg == "--direct-rate")
+      direct_rate = true;
     else {
       std::fprintf(stderr, "unknown argument %s\n", arg.c_str());
       return 2;
@@ -126,7 +134,9 @@ int main(int argc, char** argv) {
   const int max_threads = static_cast<int>(*std::max_element(threads.begin(), threads.end()));
 
   if (direct_rate) {
-    std::printf("| N | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second |\n|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "| N | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
+        "|\n|---|---|---|---|---|---|---|\n");
     for (double nd : ns) {
       const auto n = static_cast<std::size_t>(nd);
       std::vector<double> pos, mass, acc(3 * n), pot(n);
@@ -144,16 +154,17 @@ int main(int argc, char** argv) {
           best_cpu = std::min(best_cpu, cpu_now() - c0);
         }
         const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
-        std::printf("| %zu | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, static_cast<int>(t),
-                    best, best_cpu, pairs / best, pairs / best / t, pairs / best_cpu);
+        std::printf("| %zu | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, static_cast<int>(t), best, best_cpu,
+                    pairs / best, pairs / best / t, pairs / best_cpu);
         std::fflush(stdout);
       }
     }
     return 0;
   }
 
-  std::printf("| dist | N | θ | order | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | median | p99 | max |\n",
-              reps);
+  std::printf(
+      "| dist | N | θ | order | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | median | p99 | max |\n",
+      reps);
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (double nd : ns) {
     const auto n = static_cast<std::size_t>(nd);
@@ -205,13 +216,12 @@ int main(int argc, char** argv) {
           }
           const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
                        mx = *std::max_element(err.begin(), err.end());
-          std::printf("| %s | %zu | %.2g | %d | %d | %.4g | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
-                      dist.c_str(), n, theta, o.order, static_cast<int>(t), best, best_cpu, bb, bw,
-                      med, p99, mx);
+          std::printf("| %s | %zu | %.2g | %d | %d | %.4g | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n", dist.c_str(),
+                      n, theta, o.order, static_cast<int>(t), best, best_cpu, bb, bw, med, p99, mx);
           std::fflush(stdout);
           if (csv.is_open())
-            csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best
-                << ',' << best_cpu << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << '\n';
+            csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best << ',' << best_cpu
+                << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << '\n';
         }
       }
   }

@@ -63,10 +63,14 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
       return argv[++i];
     };
-    if (arg == "--steps") steps = std::stol(next());
-    else if (arg == "--k") ks = parse_list(next());
-    else if (arg == "--csv") csv_path = next();
-    else scene_path = arg;
+    if (arg == "--steps")
+      steps = std::stol(next());
+    else if (arg == "--k")
+      ks = parse_list(next());
+    else if (arg == "--csv")
+      csv_path = next();
+    else
+      scene_path = arg;
   }
   if (scene_path.empty()) {
     std::cerr << "usage: every_k SCENE.toml [--steps N] [--k 1,2,4] [--csv OUT.csv]\n";

@@ -35,7 +35,8 @@ int narrow(int pairs) {
   model.materials.push_back({"rock", 1000.0});
   model.contact_laws.reset(1, ContactLaw{});
   RandomPolyhedronOptions options;
-  for (int k = 0; k < 2 * pairs; ++k) add_polyhedron_grain(model, generate_random_polyhedron(options, static_cast<std::uint64_t>(k % 256)), 0);
+  for (int k = 0; k < 2 * pairs; ++k)
+    add_polyhedron_grain(model, generate_random_polyhedron(options, static_cast<std::uint64_t>(k % 256)), 0);
   State state;
   state.resize(model.body_count());
   std::mt19937_64 rng(3);
@@ -69,8 +70,9 @@ int narrow(int pairs) {
   do {
     for (int k = 0; k < pairs; ++k) {
       list.clear();
-      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k), static_cast<std::uint32_t>(2 * k + 1), alert,
-                                    nullptr, list, normals[static_cast<std::size_t>(k)]);
+      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
+                                    static_cast<std::uint32_t>(2 * k + 1), alert, nullptr, list,
+                                    normals[static_cast<std::size_t>(k)]);
       contacts += list.size();
     }
     ++rounds;
@@ -81,7 +83,8 @@ int narrow(int pairs) {
   for (int k = 0; k < pairs; ++k) {
     const auto b = static_cast<std::size_t>(2 * k + 1);
     state.position[b] += 1e-3 * Vec3(normal(rng), normal(rng), normal(rng));
-    state.orientation[b] = (quaternion_exp(1e-3 * Vec3(normal(rng), normal(rng), normal(rng))) * state.orientation[b]).normalized();
+    state.orientation[b] =
+        (quaternion_exp(1e-3 * Vec3(normal(rng), normal(rng), normal(rng))) * state.orientation[b]).normalized();
   }
   t0 = Clock::now();
   rounds = 0;
@@ -89,8 +92,9 @@ int narrow(int pairs) {
   do {
     for (int k = 0; k < pairs; ++k) {
       list.clear();
-      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k), static_cast<std::uint32_t>(2 * k + 1), alert,
-                                    &normals[static_cast<std::size_t>(k)], list, out);
+      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
+                                    static_cast<std::uint32_t>(2 * k + 1), alert, &normals[static_cast<std::size_t>(k)],
+                                    list, out);
     }
     ++rounds;
   } while (seconds(t0) < 2.0);
@@ -122,9 +126,10 @@ int narrow(int pairs) {
   } while (seconds(t0) < 2.0);
   const double plane_warm = rounds * pairs / seconds(t0);
   std::printf("narrow phase, %d pairs near contact (gap in [-0.02, 0.05] d, alert 0.05 d), one thread\n", pairs);
-  std::printf("  collide_polyhedron_polyhedron  cold %.0f pairs/s   warm %.0f pairs/s   (%.2f contact points/pair)\n", cold, warm,
-              contacts_per_pair);
-  std::printf("  find_common_plane only         cold %.0f pairs/s   warm %.0f pairs/s   (checksum %.3g)\n", plane_cold, plane_warm, sink);
+  std::printf("  collide_polyhedron_polyhedron  cold %.0f pairs/s   warm %.0f pairs/s   (%.2f contact points/pair)\n",
+              cold, warm, contacts_per_pair);
+  std::printf("  find_common_plane only         cold %.0f pairs/s   warm %.0f pairs/s   (checksum %.3g)\n", plane_cold,
+              plane_warm, sink);
   return 0;
 }
 
@@ -138,7 +143,8 @@ int deposit(int grains, int steps) {
   const double pitch = 0.11;
   const double half = 0.5 * per_side * pitch + 0.02;
   const int floor = add_plane_wall(model, Vec3::UnitZ(), 0);
-  std::vector<std::pair<Vec3, int>> walls = {{Vec3(-half, 0, 0), 0}, {Vec3(half, 0, 0), 0}, {Vec3(0, -half, 0), 0}, {Vec3(0, half, 0), 0}};
+  std::vector<std::pair<Vec3, int>> walls = {
+      {Vec3(-half, 0, 0), 0}, {Vec3(half, 0, 0), 0}, {Vec3(0, -half, 0), 0}, {Vec3(0, half, 0), 0}};
   const Vec3 normals[4] = {Vec3::UnitX(), -Vec3::UnitX(), Vec3::UnitY(), -Vec3::UnitY()};
   std::vector<int> wall_ids;
   for (int k = 0; k < 4; ++k) wall_ids.push_back(add_plane_wall(model, normals[k], 0));
@@ -153,12 +159,14 @@ int deposit(int grains, int steps) {
   State state;
   state.resize(model.body_count());
   state.position[static_cast<std::size_t>(floor)] = Vec3::Zero();
-  for (int k = 0; k < 4; ++k) state.position[static_cast<std::size_t>(wall_ids[static_cast<std::size_t>(k)])] = walls[static_cast<std::size_t>(k)].first;
+  for (int k = 0; k < 4; ++k)
+    state.position[static_cast<std::size_t>(wall_ids[static_cast<std::size_t>(k)])] =
+        walls[static_cast<std::size_t>(k)].first;
   for (int k = 0; k < grains; ++k) {
     const int layer = k / (per_side * per_side), cell = k % (per_side * per_side);
     const auto b = static_cast<std::size_t>(ids[static_cast<std::size_t>(k)]);
-    state.position[b] = Vec3((cell % per_side - 0.5 * (per_side - 1)) * pitch, (cell / per_side - 0.5 * (per_side - 1)) * pitch,
-                             0.06 + layer * pitch);
+    state.position[b] = Vec3((cell % per_side - 0.5 * (per_side - 1)) * pitch,
+                             (cell / per_side - 0.5 * (per_side - 1)) * pitch, 0.06 + layer * pitch);
     state.orientation[b] = random_rotation(rng);
   }
   StepOptions step_options;
@@ -179,13 +187,16 @@ int deposit(int grains, int steps) {
     max_contacts = std::max(max_contacts, static_cast<double>(report.contacts));
     sweeps += report.solver.iterations;
     if ((k + 1) % 500 == 0) {
-      std::printf("  step %d: %zu contacts, %d sweeps, %.3f s so far\n", k + 1, report.contacts, report.solver.iterations, seconds(t0));
+      std::printf("  step %d: %zu contacts, %d sweeps, %.3f s so far\n", k + 1, report.contacts,
+                  report.solver.iterations, seconds(t0));
       std::fflush(stdout);
     }
   }
   const double wall = seconds(t0);
-  std::printf("deposit: %d polyhedra, %d steps of 5e-4 s (t = %.2f s), %.2f steps/s\n", grains, steps, state.time, steps / wall);
-  std::printf("  contacts per step: mean %.0f, max %.0f; NLGS sweeps per step: mean %.1f\n", contacts / steps, max_contacts, sweeps / steps);
+  std::printf("deposit: %d polyhedra, %d steps of 5e-4 s (t = %.2f s), %.2f steps/s\n", grains, steps, state.time,
+              steps / wall);
+  std::printf("  contacts per step: mean %.0f, max %.0f; NLGS sweeps per step: mean %.1f\n", contacts / steps,
+              max_contacts, sweeps / steps);
   std::printf("  time per step by stage (ms):");
   for (std::size_t s = 0; s < stage.size(); ++s) {
     std::printf(" %s %.2f", std::string(stage_name(static_cast<Stage>(s))).c_str(), 1e3 * stage[s] / steps);

@@ -21,8 +21,8 @@ struct alignas(32) Source {
   double x, y, z, w;
 };
 
-__global__ void direct_kernel(const Source* __restrict__ src, int n, double eps2, double G,
-                              double* __restrict__ acc, double* __restrict__ pot) {
+__global__ void direct_kernel(const Source* __restrict__ src, int n, double eps2, double G, double* __restrict__ acc,
+                              double* __restrict__ pot) {
   __shared__ Source tile[kBlock];
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   const Source me = i < n ? src[i] : Source{0, 0, 0, 0};
@@ -58,8 +58,7 @@ __global__ void direct_kernel(const Source* __restrict__ src, int n, double eps2
 }
 
 void check(cudaError_t e, const char* what) {
-  if (e != cudaSuccess)
-    throw std::runtime_error(std::string("CUDA backend: ") + what + ": " + cudaGetErrorString(e));
+  if (e != cudaSuccess) throw std::runtime_error(std::string("CUDA backend: ") + what + ": " + cudaGetErrorString(e));
 }
 
 /// Device memory released on scope exit.
@@ -90,8 +89,7 @@ int device_count(std::string* reason) {
   return count;
 }
 
-void direct_sum(const double* pos, const double* mass, std::size_t n, double eps2, double G,
-                double* acc, double* pot) {
+void direct_sum(const double* pos, const double* mass, std::size_t n, double eps2, double G, double* acc, double* pot) {
   if (n == 0) return;
   if (n > static_cast<std::size_t>(INT32_MAX / 3)) throw std::runtime_error("CUDA backend: N too large");
   std::vector<Source> host(n);

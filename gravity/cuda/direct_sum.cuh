@@ -12,7 +12,6 @@ int device_count(std::string* reason);
 
 /// Exact direct sum on device 0. pos: 3n, mass: n, acc: 3n, pot: n or nullptr. eps2 = Plummer
 /// length squared (0: none). Throws std::runtime_error on a CUDA error.
-void direct_sum(const double* pos, const double* mass, std::size_t n, double eps2, double G,
-                double* acc, double* pot);
+void direct_sum(const double* pos, const double* mass, std::size_t n, double eps2, double G, double* acc, double* pot);
 
 }  // namespace rubble::gravity::cuda::detail

@@ -31,7 +31,8 @@ py::array_t<double> copy_vec3(const std::vector<Vec3>& values) {
 
 std::vector<Vec3> to_vec3_list(const py::handle& array, const char* what) {
   const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
-  if (!a || a.ndim() != 2 || a.shape(1) != 3) throw std::invalid_argument(fmt::format("{}: expected an (N, 3) array", what));
+  if (!a || a.ndim() != 2 || a.shape(1) != 3)
+    throw std::invalid_argument(fmt::format("{}: expected an (N, 3) array", what));
   std::vector<Vec3> values(static_cast<std::size_t>(a.shape(0)));
   const auto r = a.unchecked<2>();
   for (py::ssize_t i = 0; i < a.shape(0); ++i) {
@@ -55,10 +56,14 @@ std::string read_text(const std::filesystem::path& path) {
 
 const char* shape_name(ShapeKind kind) {
   switch (kind) {
-    case ShapeKind::sphere: return "sphere";
-    case ShapeKind::polyhedron: return "polyhedron";
-    case ShapeKind::plane: return "plane";
-    case ShapeKind::box: return "box";
+    case ShapeKind::sphere:
+      return "sphere";
+    case ShapeKind::polyhedron:
+      return "polyhedron";
+    case ShapeKind::plane:
+      return "plane";
+    case ShapeKind::box:
+      return "box";
   }
   return "unknown";
 }
@@ -75,19 +80,23 @@ py::dict polyhedron_dict(const ConvexPolyhedron& shape) {
   d["vertices"] = copy_vec3(shape.vertices);
   d["faces"] = faces;
   d["volume"] = shape.volume;
-  d["principal_inertia_per_density"] = py::make_tuple(shape.principal_inertia_per_density.x(),
-                                                      shape.principal_inertia_per_density.y(),
-                                                      shape.principal_inertia_per_density.z());
+  d["principal_inertia_per_density"] =
+      py::make_tuple(shape.principal_inertia_per_density.x(), shape.principal_inertia_per_density.y(),
+                     shape.principal_inertia_per_density.z());
   d["bounding_radius"] = shape.bounding_radius;
   return d;
 }
 
 const char* gravity_name(GravitySettings::Kind kind) {
   switch (kind) {
-    case GravitySettings::Kind::none: return "none";
-    case GravitySettings::Kind::uniform: return "uniform";
-    case GravitySettings::Kind::self: return "self";
-    case GravitySettings::Kind::central: return "central";
+    case GravitySettings::Kind::none:
+      return "none";
+    case GravitySettings::Kind::uniform:
+      return "uniform";
+    case GravitySettings::Kind::self:
+      return "self";
+    case GravitySettings::Kind::central:
+      return "central";
   }
   return "unknown";
 }
@@ -98,22 +107,26 @@ void bind_scene(py::module_& m) {
   py::class_<SceneObject>(m, "Scene",
                           "A scene: model (shapes, masses, materials, contact laws), initial state and run options. "
                           "Made by load_scene, parse_scene, default_scene or pack; run it with Simulation(scene).")
-      .def_property_readonly("name", [](const SceneObject& s) { return s.scene.name; }, "the scene's name")
-      .def_property_readonly("text", [](const SceneObject& s) { return s.text; },
-                             "the TOML text the scene was parsed from")
-      .def_property_readonly("source", [](const SceneObject& s) { return s.source; },
-                             "the file name the scene was parsed under")
-      .def_property_readonly("body_count", [](const SceneObject& s) { return s.scene.model.body_count(); },
-                             "bodies, walls included (grains first, then walls)")
-      .def_property_readonly("grain_count",
-                             [](const SceneObject& s) {
-                               std::size_t n = 0;
-                               for (std::size_t b = 0; b < s.scene.model.body_count(); ++b) n += s.scene.model.is_grain(b);
-                               return n;
-                             },
-                             "bodies that are grains (spheres or polyhedra)")
-      .def_property_readonly("dt", [](const SceneObject& s) { return s.scene.run.step.integrator.time_step; },
-                             "time step h, s (chosen by the scene's rule when dt = \"auto\")")
+      .def_property_readonly(
+          "name", [](const SceneObject& s) { return s.scene.name; }, "the scene's name")
+      .def_property_readonly(
+          "text", [](const SceneObject& s) { return s.text; }, "the TOML text the scene was parsed from")
+      .def_property_readonly(
+          "source", [](const SceneObject& s) { return s.source; }, "the file name the scene was parsed under")
+      .def_property_readonly(
+          "body_count", [](const SceneObject& s) { return s.scene.model.body_count(); },
+          "bodies, walls included (grains first, then walls)")
+      .def_property_readonly(
+          "grain_count",
+          [](const SceneObject& s) {
+            std::size_t n = 0;
+            for (std::size_t b = 0; b < s.scene.model.body_count(); ++b) n += s.scene.model.is_grain(b);
+            return n;
+          },
+          "bodies that are grains (spheres or polyhedra)")
+      .def_property_readonly(
+          "dt", [](const SceneObject& s) { return s.scene.run.step.integrator.time_step; },
+          "time step h, s (chosen by the scene's rule when dt = \"auto\")")
       .def_property(
           "end_time", [](const SceneObject& s) { return s.scene.run.end_time; },
           [](SceneObject& s, double t) {
@@ -121,42 +134,53 @@ void bind_scene(py::module_& m) {
             s.scene.run.end_time = t;
           },
           "end time of the run, s (the latest end when until = \"rest\"); like rubble run --end-time")
-      .def_property_readonly("until_rest", [](const SceneObject& s) { return s.scene.run.until_rest; },
-                             "the run stops once the grains are at rest")
-      .def_property_readonly("seed", [](const SceneObject& s) { return s.scene.run.seed; }, "the scene's seed")
+      .def_property_readonly(
+          "until_rest", [](const SceneObject& s) { return s.scene.run.until_rest; },
+          "the run stops once the grains are at rest")
+      .def_property_readonly(
+          "seed", [](const SceneObject& s) { return s.scene.run.seed; }, "the scene's seed")
       .def_property(
           "output_directory", [](const SceneObject& s) { return s.scene.run.output.directory; },
           [](SceneObject& s, const std::string& d) { s.scene.run.output.directory = d; },
           "folder of run.h5 and checkpoints; like rubble run --out")
-      .def_property_readonly("gravity", [](const SceneObject& s) { return gravity_name(s.scene.run.step.gravity.kind); },
-                             "none, uniform, self (direct or tree) or central")
-      .def_property_readonly("materials",
-                             [](const SceneObject& s) {
-                               py::list names;
-                               for (const Material& mat : s.scene.model.materials) names.append(mat.name);
-                               return names;
-                             },
-                             "material names, by material id")
-      .def_property_readonly("shapes",
-                             [](const SceneObject& s) {
-                               py::list kinds;
-                               for (const ShapeKind k : s.scene.model.shape_kind) kinds.append(shape_name(k));
-                               return kinds;
-                             },
-                             "shape of each body: sphere, polyhedron, plane or box")
-      .def_property_readonly("masses", [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.mass)); },
-                             "kg per body (0 for walls); a copy")
-      .def_property_readonly("bounding_radii",
-                             [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.bounding_radius)); },
-                             "m per body: the radius of a sphere, the circumscribed radius of a polyhedron (inf for planes)")
-      .def_property_readonly("volumes", [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.volume)); },
-                             "m^3 per body (0 for walls)")
-      .def_property_readonly("material_ids", [](const SceneObject& s) { return py::array_t<int>(py::cast(s.scene.model.material)); },
-                             "material id per body")
-      .def_property_readonly("positions", [](const SceneObject& s) { return copy_vec3(s.scene.state.position); },
-                             "initial positions, m, (N, 3); a copy")
-      .def_property_readonly("velocities", [](const SceneObject& s) { return copy_vec3(s.scene.state.velocity); },
-                             "initial velocities, m/s, (N, 3); a copy")
+      .def_property_readonly(
+          "gravity", [](const SceneObject& s) { return gravity_name(s.scene.run.step.gravity.kind); },
+          "none, uniform, self (direct or tree) or central")
+      .def_property_readonly(
+          "materials",
+          [](const SceneObject& s) {
+            py::list names;
+            for (const Material& mat : s.scene.model.materials) names.append(mat.name);
+            return names;
+          },
+          "material names, by material id")
+      .def_property_readonly(
+          "shapes",
+          [](const SceneObject& s) {
+            py::list kinds;
+            for (const ShapeKind k : s.scene.model.shape_kind) kinds.append(shape_name(k));
+            return kinds;
+          },
+          "shape of each body: sphere, polyhedron, plane or box")
+      .def_property_readonly(
+          "masses", [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.mass)); },
+          "kg per body (0 for walls); a copy")
+      .def_property_readonly(
+          "bounding_radii",
+          [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.bounding_radius)); },
+          "m per body: the radius of a sphere, the circumscribed radius of a polyhedron (inf for planes)")
+      .def_property_readonly(
+          "volumes", [](const SceneObject& s) { return py::array_t<double>(py::cast(s.scene.model.volume)); },
+          "m^3 per body (0 for walls)")
+      .def_property_readonly(
+          "material_ids", [](const SceneObject& s) { return py::array_t<int>(py::cast(s.scene.model.material)); },
+          "material id per body")
+      .def_property_readonly(
+          "positions", [](const SceneObject& s) { return copy_vec3(s.scene.state.position); },
+          "initial positions, m, (N, 3); a copy")
+      .def_property_readonly(
+          "velocities", [](const SceneObject& s) { return copy_vec3(s.scene.state.velocity); },
+          "initial velocities, m/s, (N, 3); a copy")
       .def(
           "polyhedron",
           [](const SceneObject& s, std::size_t body) {

@@ -143,7 +143,8 @@ int material_id(const Model& model, const py::object& material) {
 void copy_into(const py::handle& values, double* data, std::size_t rows, std::size_t width, std::size_t stride,
                const char* what) {
   const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(values);
-  if (!a || a.ndim() != 2 || static_cast<std::size_t>(a.shape(0)) != rows || static_cast<std::size_t>(a.shape(1)) != width) {
+  if (!a || a.ndim() != 2 || static_cast<std::size_t>(a.shape(0)) != rows ||
+      static_cast<std::size_t>(a.shape(1)) != width) {
     throw std::invalid_argument(fmt::format("{}: expected an array of shape ({}, {})", what, rows, width));
   }
   const double* in = a.data();
@@ -208,14 +209,16 @@ N calls of step() give the state of `rubble run` after N steps, bit for bit.)doc
           "non-finite state.")
       .def(
           "run",
-          [](py::object self_object, py::object until, const std::function<py::object(py::object)>& callback, std::int64_t every) {
+          [](py::object self_object, py::object until, const std::function<py::object(py::object)>& callback,
+             std::int64_t every) {
             Simulation& self = self_object.cast<Simulation&>();
             if (every < 1) throw std::invalid_argument(fmt::format("every: expected >= 1, got {}", every));
             const RunOptions& options = self.scene().run;
             double end_time = options.end_time;
             bool watch_rest = options.until_rest;
             if (py::isinstance<py::str>(until)) {
-              if (until.cast<std::string>() != "rest") throw std::invalid_argument("until: expected a time (s), 'rest' or None");
+              if (until.cast<std::string>() != "rest")
+                throw std::invalid_argument("until: expected a time (s), 'rest' or None");
               watch_rest = true;
             } else if (!until.is_none()) {
               end_time = until.cast<double>();
@@ -253,11 +256,14 @@ N calls of step() give the state of `rubble run` after N steps, bit for bit.)doc
 scene says (until=None: what `rubble run` does). callback(sim) is called every `every` steps;
 returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
 'stopped_by_callback', 'wall_seconds'}. Ctrl-C raises KeyboardInterrupt between two steps.)doc")
-      .def_property_readonly("body_count", [](const Simulation& s) { return s.state().body_count(); },
-                             "bodies, walls included")
-      .def_property_readonly("grain_count", [](const Simulation& s) { return s.grain_count(); }, "bodies that are grains")
-      .def_property_readonly("time", [](const Simulation& s) { return s.state().time; }, "simulated time, s")
-      .def_property_readonly("step_count", [](const Simulation& s) { return s.state().step; }, "steps taken since the scene's start")
+      .def_property_readonly(
+          "body_count", [](const Simulation& s) { return s.state().body_count(); }, "bodies, walls included")
+      .def_property_readonly(
+          "grain_count", [](const Simulation& s) { return s.grain_count(); }, "bodies that are grains")
+      .def_property_readonly(
+          "time", [](const Simulation& s) { return s.state().time; }, "simulated time, s")
+      .def_property_readonly(
+          "step_count", [](const Simulation& s) { return s.state().step; }, "steps taken since the scene's start")
       .def_property(
           "dt", [](const Simulation& s) { return s.scene().run.step.integrator.time_step; },
           [](Simulation& s, double h) {
@@ -265,8 +271,9 @@ returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
             s.set_time_step(h);
           },
           "time step h, s; may be changed between steps")
-      .def_property_readonly("theta", [](const Simulation& s) { return s.scene().run.step.integrator.theta; },
-                             "theta of the Moreau-Jean scheme")
+      .def_property_readonly(
+          "theta", [](const Simulation& s) { return s.scene().run.step.integrator.theta; },
+          "theta of the Moreau-Jean scheme")
       .def_property(
           "tolerance", [](Simulation& s) { return s.solver().tolerance; },
           [](Simulation& s, double t) {
@@ -309,8 +316,7 @@ returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
           "angular_velocities",
           [](py::object self) {
             State& st = self.cast<Simulation&>().state();
-            return view_rows(first(st.angular_velocity), st.body_count(),
-                             3, sizeof(Vec3), self);
+            return view_rows(first(st.angular_velocity), st.body_count(), 3, sizeof(Vec3), self);
           },
           [](Simulation& s, const py::handle& v) {
             check_not_stepping(s);
@@ -321,8 +327,7 @@ returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
           "orientations",
           [](py::object self) {
             State& st = self.cast<Simulation&>().state();
-            return view_rows(first(st.orientation), st.body_count(), 4,
-                             sizeof(Quat), self);
+            return view_rows(first(st.orientation), st.body_count(), 4, sizeof(Quat), self);
           },
           [](Simulation& s, const py::handle& v) {
             check_not_stepping(s);
@@ -331,17 +336,21 @@ returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
           },
           "unit quaternions body -> world frame, (N, 4) view (no copy) in the order (x, y, z, w) (scipy's); "
           "assigning normalises them")
-      .def("contacts", [](const Simulation& s) { return contacts_dict(s.contacts()); },
-           R"doc(The contact points of the last step, as arrays (a copy): body_a, body_b, feature_a, feature_b,
+      .def(
+          "contacts", [](const Simulation& s) { return contacts_dict(s.contacts()); },
+          R"doc(The contact points of the last step, as arrays (a copy): body_a, body_b, feature_a, feature_b,
 point (n, 3) m, normal (n, 3) from a to b, frame (n, 3, 3) whose rows are n, t, s, gap (m, > 0
 apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 3), status
 (0 open, 1 sticking, 2 sliding), friction, restitution.)doc")
-      .def_property_readonly("last_step", [](const Simulation& s) { return report_dict(s.last_report()); },
-                             "what the last step did: contacts, iterations, residual, converged, stage_seconds")
-      .def_property_readonly("stage_seconds", [](const Simulation& s) { return stage_dict(s.last_report().stage_seconds); },
-                             "wall time per stage of the last step, s")
-      .def_property_readonly("total_stage_seconds", [](const Simulation& s) { return stage_dict(s.total_stage_seconds()); },
-                             "wall time per stage summed over the steps this object took, s")
+      .def_property_readonly(
+          "last_step", [](const Simulation& s) { return report_dict(s.last_report()); },
+          "what the last step did: contacts, iterations, residual, converged, stage_seconds")
+      .def_property_readonly(
+          "stage_seconds", [](const Simulation& s) { return stage_dict(s.last_report().stage_seconds); },
+          "wall time per stage of the last step, s")
+      .def_property_readonly(
+          "total_stage_seconds", [](const Simulation& s) { return stage_dict(s.total_stage_seconds()); },
+          "wall time per stage summed over the steps this object took, s")
       .def(
           "fix",
           [](Simulation& s, std::size_t body) {
@@ -366,9 +375,10 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
             check_not_stepping(s);
             const Model& model = s.scene().model;
             const int ia = material_id(model, a), ib = material_id(model, b);
-            if (ia < 0 || ib < 0 || ia >= model.contact_laws.material_count || ib >= model.contact_laws.material_count) {
-              throw std::invalid_argument(fmt::format("materials ({}, {}): expected ids below {}", ia, ib,
-                                                      model.contact_laws.material_count));
+            if (ia < 0 || ib < 0 || ia >= model.contact_laws.material_count ||
+                ib >= model.contact_laws.material_count) {
+              throw std::invalid_argument(
+                  fmt::format("materials ({}, {}): expected ids below {}", ia, ib, model.contact_laws.material_count));
             }
             ContactLaw law = model.contact_laws.get(ia, ib);
             if (friction) law.friction_coefficient = *friction;
@@ -381,9 +391,9 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
             s.set_contact_law(ia, ib, law);
           },
           py::arg("material_a"), py::arg("material_b"), py::kw_only(), py::arg("friction") = py::none(),
-          py::arg("restitution") = py::none(), py::arg("cohesion") = py::none(), py::arg("work_of_adhesion") = py::none(),
-          py::arg("rolling_friction") = py::none(), py::arg("twisting_friction") = py::none(),
-          py::arg("tangential_restitution") = py::none(),
+          py::arg("restitution") = py::none(), py::arg("cohesion") = py::none(),
+          py::arg("work_of_adhesion") = py::none(), py::arg("rolling_friction") = py::none(),
+          py::arg("twisting_friction") = py::none(), py::arg("tangential_restitution") = py::none(),
           "Changes the contact law of a material pair (names or ids) from the next step on: friction (mu), "
           "restitution (e_n), cohesion (pull-off force, N), work_of_adhesion (J/m^2), rolling_friction (mu_r), "
           "twisting_friction (mu_t), tangential_restitution (e_t); keys left out keep their value")
@@ -405,26 +415,31 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
           py::arg("material_a"), py::arg("material_b"),
           "The contact law of a material pair: {'friction', 'restitution', 'cohesion' (N), 'work_of_adhesion' (J/m^2), "
           "'rolling_friction', 'twisting_friction', 'tangential_restitution'}")
-      .def_property_readonly("materials",
-                             [](const Simulation& s) {
-                               py::list names;
-                               for (const Material& mat : s.scene().model.materials) names.append(mat.name);
-                               return names;
-                             },
-                             "material names, by id")
-      .def_property_readonly("masses", [](const Simulation& s) { return py::array_t<double>(py::cast(s.scene().model.mass)); },
-                             "kg per body (0 for walls); a copy")
-      .def_property_readonly("bounding_radii",
-                             [](const Simulation& s) { return py::array_t<double>(py::cast(s.scene().model.bounding_radius)); },
-                             "m per body (sphere radius; circumscribed radius of a polyhedron); a copy")
-      .def_property_readonly("is_grain",
-                             [](const Simulation& s) {
-                               const Model& model = s.scene().model;
-                               py::array_t<bool> grain(static_cast<py::ssize_t>(model.body_count()));
-                               for (std::size_t b = 0; b < model.body_count(); ++b) grain.mutable_at(static_cast<py::ssize_t>(b)) = model.is_grain(b);
-                               return grain;
-                             },
-                             "True for grains, False for walls, per body")
+      .def_property_readonly(
+          "materials",
+          [](const Simulation& s) {
+            py::list names;
+            for (const Material& mat : s.scene().model.materials) names.append(mat.name);
+            return names;
+          },
+          "material names, by id")
+      .def_property_readonly(
+          "masses", [](const Simulation& s) { return py::array_t<double>(py::cast(s.scene().model.mass)); },
+          "kg per body (0 for walls); a copy")
+      .def_property_readonly(
+          "bounding_radii",
+          [](const Simulation& s) { return py::array_t<double>(py::cast(s.scene().model.bounding_radius)); },
+          "m per body (sphere radius; circumscribed radius of a polyhedron); a copy")
+      .def_property_readonly(
+          "is_grain",
+          [](const Simulation& s) {
+            const Model& model = s.scene().model;
+            py::array_t<bool> grain(static_cast<py::ssize_t>(model.body_count()));
+            for (std::size_t b = 0; b < model.body_count(); ++b)
+              grain.mutable_at(static_cast<py::ssize_t>(b)) = model.is_grain(b);
+            return grain;
+          },
+          "True for grains, False for walls, per body")
       .def(
           "metrics",
           [](const Simulation& s, double impulse_threshold) {
@@ -435,8 +450,9 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
           py::arg("impulse_threshold") = 0.0,
           "The metrics of `rubble post` now (Z, Z without rattlers, nu, D_max, energies, ...): {name: value}; "
           "definitions in docs/postprocessing.md")
-      .def("state_hash", [](const Simulation& s) { return state_hash(s.state()); },
-           "CRC-64 of the state (time, step, positions, orientations, velocities): the hash `rubble run` prints")
+      .def(
+          "state_hash", [](const Simulation& s) { return state_hash(s.state()); },
+          "CRC-64 of the state (time, step, positions, orientations, velocities): the hash `rubble run` prints")
       .def(
           "record",
           [](Simulation& s, const std::filesystem::path& directory, std::optional<double> end_time) {
@@ -447,13 +463,14 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
           "Writes DIR/run.h5 as `rubble run` does from now on (model, scene, one series row per step, snapshots at "
           "the scene's cadence; end_time sets the default cadence of 100 snapshots); close() finishes it")
       .def("close", &Simulation::close_record, "Writes the last snapshot and closes the run file (if recording)")
-      .def_property_readonly("record_path",
-                             [](const Simulation& s) -> py::object {
-                               const auto path = s.record_path();
-                               if (path.empty()) return py::none();
-                               return py::str(path.string());
-                             },
-                             "the run file being written, or None")
+      .def_property_readonly(
+          "record_path",
+          [](const Simulation& s) -> py::object {
+            const auto path = s.record_path();
+            if (path.empty()) return py::none();
+            return py::str(path.string());
+          },
+          "the run file being written, or None")
       .def("__enter__", [](py::object self) { return self; })
       .def("__exit__", [](Simulation& s, py::args) { s.close_record(); })
       .def(
@@ -480,7 +497,8 @@ apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 
           "The current state as a new scene (every grain explicit, velocities included)")
       .def("__repr__", [](const Simulation& s) {
         return fmt::format("<rubble.Simulation '{}': {} bodies, step {}, t = {} s, dt = {} s>", s.scene().name,
-                           s.state().body_count(), s.state().step, s.state().time, s.scene().run.step.integrator.time_step);
+                           s.state().body_count(), s.state().step, s.state().time,
+                           s.scene().run.step.integrator.time_step);
       });
 }
 

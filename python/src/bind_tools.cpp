@@ -135,7 +135,8 @@ void bind_tools(py::module_& m) {
       "_gravity_field",
       [](const DoubleArray& positions, const DoubleArray& masses, const std::string& method, double theta, int order,
          double G, double softening, bool with_potential, int leaf_size, int group_size) {
-        if (positions.ndim() != 2 || positions.shape(1) != 3) throw gravity::GravityError("positions: expected an (N, 3) array");
+        if (positions.ndim() != 2 || positions.shape(1) != 3)
+          throw gravity::GravityError("positions: expected an (N, 3) array");
         if (masses.ndim() != 1 || masses.shape(0) != positions.shape(0)) {
           throw gravity::GravityError(fmt::format("masses: expected {} values (one per position), got shape {}",
                                                   positions.shape(0), masses.ndim() == 1 ? masses.shape(0) : -1));
@@ -176,17 +177,20 @@ void bind_tools(py::module_& m) {
   // ---- run files ----
   py::class_<RunReader>(m, "RunReader", "A run file (run.h5) open for reading: model, scene text, series, snapshots")
       .def(py::init([](const std::filesystem::path& path) { return RunReader::open(path); }), py::arg("path"))
-      .def_property_readonly("path", [](const RunReader& r) { return r.path().string(); }, "the file")
+      .def_property_readonly(
+          "path", [](const RunReader& r) { return r.path().string(); }, "the file")
       .def_property_readonly("scene_text", &RunReader::scene_text, "the scene as TOML")
       .def_property_readonly("snapshot_count", &RunReader::snapshot_count, "snapshots in the file")
-      .def_property_readonly("body_count", [](const RunReader& r) { return r.model().body_count(); }, "bodies")
+      .def_property_readonly(
+          "body_count", [](const RunReader& r) { return r.model().body_count(); }, "bodies")
       .def_property_readonly("time_step", &RunReader::time_step, "h, s, estimated from the series")
       .def(
           "snapshot",
           [](const RunReader& r, std::int64_t index) {
             const auto count = static_cast<std::int64_t>(r.snapshot_count());
             if (index < 0) index += count;
-            if (index < 0 || index >= count) throw py::index_error(fmt::format("snapshot {}: the file has {}", index, count));
+            if (index < 0 || index >= count)
+              throw py::index_error(fmt::format("snapshot {}: the file has {}", index, count));
             return snapshot_dict(r.read_snapshot(static_cast<std::size_t>(index)));
           },
           py::arg("index"),
@@ -232,7 +236,8 @@ void bind_tools(py::module_& m) {
               for (std::size_t c = 0; c < names.size(); ++c) columns[c].push_back(row[c]);
             }
             py::dict d;
-            for (std::size_t c = 0; c < names.size(); ++c) d[py::str(names[c])] = py::array_t<double>(py::cast(columns[c]));
+            for (std::size_t c = 0; c < names.size(); ++c)
+              d[py::str(names[c])] = py::array_t<double>(py::cast(columns[c]));
             return d;
           },
           py::arg("every") = 1, py::arg("impulse_threshold") = 0.0,
@@ -282,15 +287,18 @@ void bind_tools(py::module_& m) {
            py::keep_alive<1, 3>())  // the series reads the simulation's model
       .def(
           "write",
-          [](VtkSeries& series, const Simulation& simulation) { series.write(simulation.state(), simulation.contacts()); },
+          [](VtkSeries& series, const Simulation& simulation) {
+            series.write(simulation.state(), simulation.contacts());
+          },
           py::arg("simulation"), "Writes the simulation's current state and contacts as the next snapshot")
-      .def_property_readonly("collections",
-                             [](const VtkSeries& s) {
-                               std::vector<std::string> names;
-                               for (const auto& f : s.collections()) names.push_back(f.string());
-                               return names;
-                             },
-                             "the .pvd files written so far")
+      .def_property_readonly(
+          "collections",
+          [](const VtkSeries& s) {
+            std::vector<std::string> names;
+            for (const auto& f : s.collections()) names.push_back(f.string());
+            return names;
+          },
+          "the .pvd files written so far")
       .def_property_readonly("snapshot_count", &VtkSeries::snapshot_count, "snapshots written");
 
   // ---- FCLib ----
@@ -329,11 +337,14 @@ void bind_tools(py::module_& m) {
         LocalProblem problem;
         const auto nc = static_cast<std::size_t>(mu.size());
         if (static_cast<std::size_t>(q.size()) != 3 * nc || static_cast<std::size_t>(size) != 3 * nc) {
-          throw std::invalid_argument(fmt::format("W, q, mu: expected W of size 3 nc x 3 nc and |q| = 3 |mu|; got W {0}x{0}, "
-                                                  "|q| = {1}, |mu| = {2}", size, q.size(), mu.size()));
+          throw std::invalid_argument(
+              fmt::format("W, q, mu: expected W of size 3 nc x 3 nc and |q| = 3 |mu|; got W {0}x{0}, "
+                          "|q| = {1}, |mu| = {2}",
+                          size, q.size(), mu.size()));
         }
         if (static_cast<std::size_t>(indptr.size()) != 3 * nc + 1 || indices.size() != data.size()) {
-          throw std::invalid_argument("W: malformed compressed-row arrays (indptr of 3 nc + 1 entries, indices and data alike)");
+          throw std::invalid_argument(
+              "W: malformed compressed-row arrays (indptr of 3 nc + 1 entries, indices and data alike)");
         }
         problem.W.rows = size;
         problem.W.columns = size;
@@ -341,13 +352,16 @@ void bind_tools(py::module_& m) {
         problem.W.column.assign(indices.data(), indices.data() + indices.size());
         problem.W.value.assign(data.data(), data.data() + data.size());
         for (std::size_t r = 0; r + 1 < problem.W.row_start.size(); ++r) {
-          if (problem.W.row_start[r] > problem.W.row_start[r + 1]) throw std::invalid_argument("W: indptr must not decrease");
+          if (problem.W.row_start[r] > problem.W.row_start[r + 1])
+            throw std::invalid_argument("W: indptr must not decrease");
         }
-        if (problem.W.row_start.front() != 0 || problem.W.row_start.back() != static_cast<int>(problem.W.value.size())) {
+        if (problem.W.row_start.front() != 0 ||
+            problem.W.row_start.back() != static_cast<int>(problem.W.value.size())) {
           throw std::invalid_argument("W: indptr must start at 0 and end at the number of stored values");
         }
         for (const int c : problem.W.column) {
-          if (c < 0 || c >= size) throw std::invalid_argument(fmt::format("W: column index {} out of range [0, {})", c, size));
+          if (c < 0 || c >= size)
+            throw std::invalid_argument(fmt::format("W: column index {} out of range [0, {})", c, size));
         }
         problem.q.assign(q.data(), q.data() + q.size());
         problem.mu.assign(mu.data(), mu.data() + mu.size());

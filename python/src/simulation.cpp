@@ -126,10 +126,12 @@ const StepReport& Simulation::advance() {
 
   if (!record_ && !watch_rest_) return last_report_;
   if (watch_rest_ && grain_count_ > 0) {
-    at_rest_ = rest_.update(rest_sample(scene_.model, state_, workspace_.carry.contacts, scene_.run.rest.quantile)) || at_rest_;
+    at_rest_ = rest_.update(rest_sample(scene_.model, state_, workspace_.carry.contacts, scene_.run.rest.quantile)) ||
+               at_rest_;
   }
   if (record_) {
-    const SeriesRow row = series_row(scene_.model, state_, last_report_, scene_.run.step.gravity, step_seconds, potential_energy_);
+    const SeriesRow row =
+        series_row(scene_.model, state_, last_report_, scene_.run.step.gravity, step_seconds, potential_energy_);
     record_->append_series(row);
     if ((state_.step - record_first_step_) % snapshot_period_ == 0 || at_rest_) write_snapshot();
   }
@@ -149,7 +151,8 @@ void Simulation::record(const std::filesystem::path& directory, double end_time)
   if (output.snapshot_every_steps > 0) {
     snapshot_period_ = output.snapshot_every_steps;
   } else if (output.snapshot_interval > 0.0) {
-    snapshot_period_ = std::max<std::int64_t>(1, std::llround(output.snapshot_interval / scene_.run.step.integrator.time_step));
+    snapshot_period_ =
+        std::max<std::int64_t>(1, std::llround(output.snapshot_interval / scene_.run.step.integrator.time_step));
   } else {
     snapshot_period_ = std::max<std::int64_t>(1, steps_to(end_time) / 100);
   }
@@ -186,9 +189,10 @@ void Simulation::close_record() {
                            : state_.step >= progress_.end_step ? RunStatus::end_time
                                                                : RunStatus::closed;
   const std::string reason =
-      status == RunStatus::at_rest    ? fmt::format("at rest at t = {:.6g} s (step {})", state_.time, state_.step)
-      : status == RunStatus::end_time ? fmt::format("end time reached at t = {:.6g} s (step {})", state_.time, state_.step)
-                                      : fmt::format("closed by the script at t = {:.6g} s (step {})", state_.time, state_.step);
+      status == RunStatus::at_rest ? fmt::format("at rest at t = {:.6g} s (step {})", state_.time, state_.step)
+      : status == RunStatus::end_time
+          ? fmt::format("end time reached at t = {:.6g} s (step {})", state_.time, state_.step)
+          : fmt::format("closed by the script at t = {:.6g} s (step {})", state_.time, state_.step);
   record_->set_status(status, reason);
   record_->flush();
   record_.reset();
@@ -232,7 +236,8 @@ void Simulation::set_fixed(std::size_t body, bool fixed) {
   if (body >= model.body_count()) {
     throw std::out_of_range(fmt::format("body {}: expected an id < {}", body, model.body_count()));
   }
-  if (!model.is_grain(body)) throw std::invalid_argument(fmt::format("body {} is a wall: walls are always fixed", body));
+  if (!model.is_grain(body))
+    throw std::invalid_argument(fmt::format("body {} is a wall: walls are always fixed", body));
   if (fixed) {
     model.inverse_mass[body] = 0.0;
     model.inverse_inertia[body] = Vec3::Zero();
@@ -250,10 +255,12 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
     throw std::out_of_range(fmt::format("materials ({}, {}): expected ids in [0, {})", material_a, material_b, n));
   }
   if (!(law.friction_coefficient >= 0.0) || !std::isfinite(law.friction_coefficient)) {
-    throw std::invalid_argument(fmt::format("friction: expected a finite number >= 0, got {}", law.friction_coefficient));
+    throw std::invalid_argument(
+        fmt::format("friction: expected a finite number >= 0, got {}", law.friction_coefficient));
   }
   if (!(law.normal_restitution >= 0.0 && law.normal_restitution <= 1.0)) {
-    throw std::invalid_argument(fmt::format("restitution: expected a number in [0, 1], got {}", law.normal_restitution));
+    throw std::invalid_argument(
+        fmt::format("restitution: expected a number in [0, 1], got {}", law.normal_restitution));
   }
   if (!(law.tangential_restitution >= 0.0 && law.tangential_restitution <= 1.0)) {
     throw std::invalid_argument(
@@ -263,9 +270,11 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
     throw std::invalid_argument(fmt::format("cohesion: expected a finite number >= 0 (N), got {}", law.cohesion));
   }
   if (!(law.work_of_adhesion >= 0.0) || !std::isfinite(law.work_of_adhesion)) {
-    throw std::invalid_argument(fmt::format("work_of_adhesion: expected a finite number >= 0 (J/m^2), got {}", law.work_of_adhesion));
+    throw std::invalid_argument(
+        fmt::format("work_of_adhesion: expected a finite number >= 0 (J/m^2), got {}", law.work_of_adhesion));
   }
-  for (const auto& [name, value] : {std::pair{"rolling_friction", law.rolling_friction}, std::pair{"twisting_friction", law.twisting_friction}}) {
+  for (const auto& [name, value] :
+       {std::pair{"rolling_friction", law.rolling_friction}, std::pair{"twisting_friction", law.twisting_friction}}) {
     if (!(value >= 0.0) || !std::isfinite(value)) {
       throw std::invalid_argument(fmt::format("{}: expected a finite number >= 0, got {}", name, value));
     }
@@ -275,7 +284,8 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
 }
 
 void Simulation::set_time_step(double h) {
-  if (!(h > 0.0) || !std::isfinite(h)) throw std::invalid_argument(fmt::format("dt: expected a finite number > 0, got {}", h));
+  if (!(h > 0.0) || !std::isfinite(h))
+    throw std::invalid_argument(fmt::format("dt: expected a finite number > 0, got {}", h));
   scene_.run.step.integrator.time_step = h;
   scene_.run.automatic_time_step = false;
   scene_modified_ = true;

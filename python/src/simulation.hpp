@@ -139,7 +139,7 @@ class Simulation {
   std::int64_t record_first_step_ = 0;
   std::int64_t snapshot_period_ = 1;
   std::int64_t last_snapshot_step_ = -1;
-  RunProgress progress_{};  ///< bookkeeping saved with checkpoints (series rows, snapshots, sums)
+  RunProgress progress_{};                  ///< bookkeeping saved with checkpoints (series rows, snapshots, sums)
   std::optional<double> potential_energy_;  ///< J, the grains' potential energy after the last recorded step
 };
 

@@ -60,7 +60,8 @@ Checkpoint sample_checkpoint(std::int64_t step = 1234) {
   c.carry.detection_memory.pairs = {BodyPair{0, 1}, BodyPair{1, 2}};
   c.carry.detection_memory.common_normals = {Vec3(0, 0, 1), Vec3(0.6, 0.8, 0)};
   c.progress = RunProgress{0, 0.5, 5000, 50, step, 25, 4321.0, 7.5e-5, 3, 12.5};
-  c.rest = RestWatch{true, true, 0.0625, 4.5, {{0, 1}, {1, 2}}, 2, 0.125, 0.25, 0.375, {{0.01, -3.5}, {0.02, -4.25}}, 0.05};
+  c.rest =
+      RestWatch{true, true, 0.0625, 4.5, {{0, 1}, {1, 2}}, 2, 0.125, 0.25, 0.375, {{0.01, -3.5}, {0.02, -4.25}}, 0.05};
   c.carry.held_gravity = {Vec3(1e-9, -2.5, 0.0), Vec3(-0.0, 3.0, 1e300), Vec3::Zero()};
   c.carry.held_gravity_step = step - 1;
   return c;
@@ -154,7 +155,8 @@ TEST(CheckpointFormat, MessagesNameTheFileAndTheProblem) {
     deserialize_checkpoint(bytes, "run/checkpoints/step-000000001234.ckpt");
     FAIL() << "no error";
   } catch (const CheckpointError& e) {
-    EXPECT_NE(std::string(e.what()).find("run/checkpoints/step-000000001234.ckpt: checksum mismatch"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("run/checkpoints/step-000000001234.ckpt: checksum mismatch"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_THROW(deserialize_checkpoint(as_bytes("definitely not a checkpoint, but long enough"), "x"), CheckpointError);

@@ -226,7 +226,8 @@ TEST(RunScene, VtkTrueWritesTheParaViewSeriesWithTheSnapshots) {
   EXPECT_EQ(finished.snapshots, 17);
   const RunReader reader = RunReader::open(finished.run_file);
   std::vector<double> snapshot_times;
-  for (std::size_t k = 0; k < reader.snapshot_count(); ++k) snapshot_times.push_back(reader.read_snapshot(k).state.time);
+  for (std::size_t k = 0; k < reader.snapshot_count(); ++k)
+    snapshot_times.push_back(reader.read_snapshot(k).state.time);
   for (const char* kind : {"spheres", "contacts", "walls"}) {
     SCOPED_TRACE(kind);
     const std::vector<double> times = pvd_times(vtk / (std::string(kind) + ".pvd"));

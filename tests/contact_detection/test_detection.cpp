@@ -140,10 +140,11 @@ TEST(Detection, WavesAndTheGlobalSortGiveThePairByPairList) {
   ASSERT_GT(stats.candidate_pairs, 2 * 4096u);
 
   std::vector<BodyPair> pairs = brute_force_pairs(c, alert);  // sphere pairs (the plane's radius is infinite:
-  pairs.erase(std::remove_if(pairs.begin(), pairs.end(),       // brute force lists it with everything)
+  pairs.erase(std::remove_if(pairs.begin(), pairs.end(),      // brute force lists it with everything)
                              [&](const BodyPair& p) { return p.body_b == static_cast<std::uint32_t>(floor); }),
               pairs.end());
-  for (std::uint32_t b = 0; b < static_cast<std::uint32_t>(floor); ++b) pairs.push_back({b, static_cast<std::uint32_t>(floor)});
+  for (std::uint32_t b = 0; b < static_cast<std::uint32_t>(floor); ++b)
+    pairs.push_back({b, static_cast<std::uint32_t>(floor)});
   ContactList reference;
   Vec3 unused_normal;
   for (const BodyPair& p : pairs) collide_pair(c.model, c.state, p, alert, DetectionMemory{}, reference, unused_normal);
@@ -199,7 +200,8 @@ TEST(MatchContacts, RecordsCarryTheFullListsImpulsesToTheBit) {
   carry_impulses(records, carried);
   std::size_t matched = 0;
   for (std::size_t k = 0; k < current.size(); ++k) {
-    const auto old = std::find_if(previous.begin(), previous.end(), [&](const Contact& p) { return p.id == current[k].id; });
+    const auto old =
+        std::find_if(previous.begin(), previous.end(), [&](const Contact& p) { return p.id == current[k].id; });
     const Vec3 expected =
         old == previous.end() ? Vec3::Zero() : Vec3(current[k].frame.transpose() * (old->frame * old->impulse));
     EXPECT_EQ(carried[k].impulse, expected) << k;

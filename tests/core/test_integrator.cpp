@@ -58,7 +58,9 @@ struct FreeBody {
     const Mat3 R = state.orientation[0].toRotationMatrix();
     return R * model.principal_inertia[0].cwiseProduct(body_omega());
   }
-  double kinetic_energy() const { return 0.5 * body_omega().dot(model.principal_inertia[0].cwiseProduct(body_omega())); }
+  double kinetic_energy() const {
+    return 0.5 * body_omega().dot(model.principal_inertia[0].cwiseProduct(body_omega()));
+  }
 };
 
 TEST(FreeRotation, PrincipalAxisSpinIsSteady) {

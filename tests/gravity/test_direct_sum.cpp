@@ -22,8 +22,7 @@ using g::testing::Particles;
 namespace {
 
 /// Independent reference: plain scalar double loop, written without the library kernel.
-void naive_field(const Particles& p, double G, double eps, std::vector<double>& a,
-                 std::vector<double>& phi) {
+void naive_field(const Particles& p, double G, double eps, std::vector<double>& a, std::vector<double>& phi) {
   const std::size_t n = p.size();
   a.assign(3 * n, 0.0);
   phi.assign(n, 0.0);

@@ -32,8 +32,7 @@ g::GravityOptions tree_options(double theta, int order, double G = 1.0) {
   return o;
 }
 
-std::vector<double> field(const g::GravityOptions& o, const Particles& p,
-                          std::vector<double>* phi = nullptr) {
+std::vector<double> field(const g::GravityOptions& o, const Particles& p, std::vector<double>* phi = nullptr) {
   std::vector<double> a(3 * p.size());
   if (phi) phi->assign(p.size(), 0.0);
   g::compute_field(o, p.pos, p.mass, a, phi ? std::span<double>(*phi) : std::span<double>());
@@ -69,7 +68,8 @@ TEST(Tree, UniformSphereMatchesAnalyticField) {
     if (r < r_min || (r > R && r < 1.05 * R)) continue;
     const int b = std::min(bins - 1, static_cast<int>((r - r_min) / (r_max - r_min) * bins));
     // Radial inward component of the field.
-    const double g_r = -(a[3 * i] * p.pos[3 * i] + a[3 * i + 1] * p.pos[3 * i + 1] + a[3 * i + 2] * p.pos[3 * i + 2]) / r;
+    const double g_r =
+        -(a[3 * i] * p.pos[3 * i] + a[3 * i + 1] * p.pos[3 * i + 1] + a[3 * i + 2] * p.pos[3 * i + 2]) / r;
     sum_g[b] += g_r;
     sum_ref[b] += r <= R ? G * M * r / (R * R * R) : G * M / (r * r);
     ++count[b];
@@ -111,10 +111,10 @@ TEST(Tree, AccuracyAgainstDirectSum) {
   for (const auto& c : cases) {
     const auto quad = tree_error(c.particles, 0.5, 2);
     const auto mono = tree_error(c.particles, 0.5, 1);
-    std::printf("[ tree ] %s N=%zu theta=0.5 quadrupole: median %.2e p99 %.2e max %.2e\n", c.name,
-                n, quad.median, quad.p99, quad.max);
-    std::printf("[ tree ] %s N=%zu theta=0.5 monopole:   median %.2e p99 %.2e max %.2e\n", c.name,
-                n, mono.median, mono.p99, mono.max);
+    std::printf("[ tree ] %s N=%zu theta=0.5 quadrupole: median %.2e p99 %.2e max %.2e\n", c.name, n, quad.median,
+                quad.p99, quad.max);
+    std::printf("[ tree ] %s N=%zu theta=0.5 monopole:   median %.2e p99 %.2e max %.2e\n", c.name, n, mono.median,
+                mono.p99, mono.max);
     RecordProperty(std::string(c.name) + "_quadrupole_median", std::to_string(quad.median));
     RecordProperty(std::string(c.name) + "_quadrupole_p99", std::to_string(quad.p99));
     EXPECT_LT(quad.median, 1e-3) << c.name;
@@ -136,8 +136,8 @@ TEST(Tree, QuadrupoleKernelMatchesDumbbell) {
                zs[2] = {cz + s * ez, cz - s * ez}, ms[2] = {m, m};
   // Second moment about the centre: sum m (s e)(s e)^T = 2 m s^2 e e^T.
   const double k = 2.0 * m * s * s;
-  const double qxx = k * ex * ex, qxy = k * ex * ey, qxz = k * ex * ez, qyy = k * ey * ey,
-               qyz = k * ey * ez, qzz = k * ez * ez, mass = 2 * m;
+  const double qxx = k * ex * ex, qxy = k * ex * ey, qxz = k * ex * ez, qyy = k * ey * ey, qyz = k * ey * ez,
+               qzz = k * ez * ez, mass = 2 * m;
   std::mt19937_64 rng(31);
   for (int t = 0; t < 50; ++t) {
     std::vector<double> dir;
@@ -145,8 +145,7 @@ TEST(Tree, QuadrupoleKernelMatchesDumbbell) {
     const double x = cx + dir[0], y = cy + dir[1], z = cz + dir[2];
     g::detail::Accum exact, quad, mono;
     g::detail::p2p(xs, ys, zs, ms, 2, x, y, z, 0.0, exact);
-    g::detail::m2p_quadrupole(&cx, &cy, &cz, &mass, &qxx, &qxy, &qxz, &qyy, &qyz, &qzz, 1, x, y, z,
-                              0.0, quad);
+    g::detail::m2p_quadrupole(&cx, &cy, &cz, &mass, &qxx, &qxy, &qxz, &qyy, &qyz, &qzz, 1, x, y, z, 0.0, quad);
     g::detail::p2p(&cx, &cy, &cz, &mass, 1, x, y, z, 0.0, mono);
     const double amag = std::hypot(exact.ax, exact.ay, exact.az);
     const double err_quad = std::hypot(quad.ax - exact.ax, quad.ay - exact.ay, quad.az - exact.az) / amag;

@@ -112,8 +112,10 @@ TEST(Cohesion, WorkOfAdhesionGivesThePullOffForceOfTwoSpheres) {
     const double moved = (s.state.position[static_cast<std::size_t>(small)] - Vec3(0, 0, -2 * ra - rb)).norm();
     std::cout << "W = " << ratio << " m g / (2 pi r_eff): the small sphere moved " << moved << " m\n";
     EXPECT_LT(big_moved, 1e-9);
-    if (ratio > 1.0) EXPECT_LT(moved, 1e-9);
-    else EXPECT_GT(moved, 0.3);
+    if (ratio > 1.0)
+      EXPECT_LT(moved, 1e-9);
+    else
+      EXPECT_GT(moved, 0.3);
   }
 }
 
@@ -145,8 +147,8 @@ TEST(Cohesion, FrictionActsOnTheNormalForceIncludingCohesion) {
   const double sticking = cube_on_a_wall(mu, 1.02 * weight / mu, 0.5, mass);
   const double sliding = cube_on_a_wall(mu, 0.9 * weight / mu, 0.5, mass);
   const double expected = (g - mu * (0.9 * weight / mu) / mass) * 0.5;
-  std::cout << "cube on a wall: sticking speed " << sticking << " m/s; sliding speed " << sliding << " m/s, closed form "
-            << expected << " m/s\n";
+  std::cout << "cube on a wall: sticking speed " << sticking << " m/s; sliding speed " << sliding
+            << " m/s, closed form " << expected << " m/s\n";
   EXPECT_LT(std::abs(sticking), 1e-9);
   EXPECT_NEAR(sliding, expected, 0.01 * expected);
 }

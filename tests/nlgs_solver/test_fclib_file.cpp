@@ -59,7 +59,8 @@ LocalProblem sparse_problem(std::size_t n, std::uint64_t seed) {
 
 TEST(FclibFile, TheThreeStoragesOfWReadBackExactly) {
   const LocalProblem p = sparse_problem(5, 3);
-  for (const SparseStorage storage : {SparseStorage::compressed_row, SparseStorage::compressed_column, SparseStorage::triplet}) {
+  for (const SparseStorage storage :
+       {SparseStorage::compressed_row, SparseStorage::compressed_column, SparseStorage::triplet}) {
     const fs::path file = scratch("storage.hdf5");
     write_fclib_local(file, p, storage, "round trip");
     FclibFileInfo info;
@@ -91,7 +92,8 @@ TEST(FclibFile, TripletEntriesAreSortedAndDuplicatesSummed) {
     // Overwrite i, p, x and nz with unordered entries (row, column): (2,2) 3, (0,0) 1, (1,1) 2,
     // (0,0) 0.5, (0,2) 4.
     const hid_t f = H5Fopen(file.string().c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-    for (const char* name : {"/fclib_local/W/i", "/fclib_local/W/p", "/fclib_local/W/x", "/fclib_local/W/nz"}) H5Ldelete(f, name, H5P_DEFAULT);
+    for (const char* name : {"/fclib_local/W/i", "/fclib_local/W/p", "/fclib_local/W/x", "/fclib_local/W/nz"})
+      H5Ldelete(f, name, H5P_DEFAULT);
     const std::vector<int> rows{2, 0, 1, 0, 0}, columns{2, 0, 1, 0, 2};
     const std::vector<double> values{3.0, 1.0, 2.0, 0.5, 4.0};
     const int nz = 5;
@@ -130,7 +132,11 @@ TEST(FclibFile, BadFilesGiveMessagesNamingFileAndDataset) {
   expect_error(scratch("missing.hdf5"), "no such file");
 
   const fs::path text = scratch("text.hdf5");
-  { std::FILE* f = std::fopen(text.string().c_str(), "w"); std::fputs("not hdf5", f); std::fclose(f); }
+  {
+    std::FILE* f = std::fopen(text.string().c_str(), "w");
+    std::fputs("not hdf5", f);
+    std::fclose(f);
+  }
   expect_error(text, "not an HDF5 file");
   fs::remove(text);
 
@@ -199,8 +205,10 @@ double independent_error(const LocalProblem& p, const std::vector<double>& r) {
     x(0) -= mu * u.segment<2>(3 * k + 1).norm();
     const double xn = x(0), xt = x.tail<2>().norm();
     Eigen::Vector3d projection;
-    if (xt <= mu * xn) projection = x;
-    else if (mu * xt <= -xn) projection.setZero();
+    if (xt <= mu * xn)
+      projection = x;
+    else if (mu * xt <= -xn)
+      projection.setZero();
     else {
       const double pn = (xn + mu * xt) / (1 + mu * mu);
       projection << pn, mu * pn * x(1) / xt, mu * pn * x(2) / xt;
@@ -241,8 +249,9 @@ TEST_P(SharedFclib, ReadsTheDelassusOperatorAsAnIndependentReaderDoes) {
   }
   // Delassus operators are positive semi-definite (their symmetric part is).
   const Eigen::MatrixXd symmetric_part = 0.5 * (W + W.transpose());
-  EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(symmetric_part, Eigen::EigenvaluesOnly).eigenvalues().minCoeff(),
-            -1e-10 * W.cwiseAbs().maxCoeff());
+  EXPECT_GE(
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(symmetric_part, Eigen::EigenvaluesOnly).eigenvalues().minCoeff(),
+      -1e-10 * W.cwiseAbs().maxCoeff());
 }
 
 // rubble fclib's default (sweeps + polish) on all four; the plain sweeps too, except on BoxesStack
@@ -281,14 +290,13 @@ TEST_P(SharedFclib, NewtonPolishReachesTenToTheMinusEight) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Shared, SharedFclib, ::testing::ValuesIn(shared_problems),
-                         [](const auto& info) {
-                           std::string name = info.param.file;
-                           name = name.substr(0, name.find('.'));
-                           for (char& c : name)
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Shared, SharedFclib, ::testing::ValuesIn(shared_problems), [](const auto& info) {
+  std::string name = info.param.file;
+  name = name.substr(0, name.find('.'));
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+});
 
 }  // namespace
 }  // namespace rubble

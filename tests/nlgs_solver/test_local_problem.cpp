@@ -97,7 +97,8 @@ TEST(LocalProblem, AlartCurnierFunctionVanishesExactlyAtTheSolution) {
   EXPECT_LT(norm, 1e-11);
   // At r = 0 with a compressive q_n, F_n = rho q_n != 0 for some contact.
   double at_zero = 0.0;
-  for (double f : alart_curnier_function(p, std::vector<double>(p.q.size(), 0.0))) at_zero = std::max(at_zero, std::abs(f));
+  for (double f : alart_curnier_function(p, std::vector<double>(p.q.size(), 0.0)))
+    at_zero = std::max(at_zero, std::abs(f));
   EXPECT_GT(at_zero, 1e-3);
 }
 

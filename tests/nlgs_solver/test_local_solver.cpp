@@ -63,8 +63,8 @@ TEST(LocalSolver, ZeroesTheNaturalMapOnRandomCoupledBlocks) {
     const LocalSolution s = solve_local_contact(W, q, mu);
     const Vec3 velocity = W * s.impulse + q;
     const double scale = 1.0 + q.norm();
-    ASSERT_LT(natural_map(s.impulse, velocity, mu).norm(), 1e-9 * scale)
-        << "case " << k << " mu " << mu << "\nW\n" << W << "\nq " << q.transpose();
+    ASSERT_LT(natural_map(s.impulse, velocity, mu).norm(), 1e-9 * scale) << "case " << k << " mu " << mu << "\nW\n"
+                                                                         << W << "\nq " << q.transpose();
     sliding += s.regime == LocalSolution::Regime::sliding;
   }
   EXPECT_GT(sliding, 1000);  // the sliding branch was exercised

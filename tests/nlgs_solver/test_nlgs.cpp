@@ -43,8 +43,8 @@ TEST(Nlgs, FloorCarriesTheWholeWeightOfAStaticPile) {
   s.options.solver.tolerance = 1e-9;
   s.options.solver.max_iterations = 100000;
   s.advance();
-  ASSERT_TRUE(s.last_report.solver.converged) << "residual " << s.last_report.solver.residual << " after "
-                                              << s.last_report.solver.iterations << " sweeps";
+  ASSERT_TRUE(s.last_report.solver.converged)
+      << "residual " << s.last_report.solver.residual << " after " << s.last_report.solver.iterations << " sweeps";
   double floor_impulse = 0.0;
   double weight = 0.0;
   for (std::size_t b = 1; b < s.model.body_count(); ++b) weight += s.model.mass[b] * 9.81;
@@ -151,8 +151,8 @@ TEST(SweepPlan, GroupsOfOnePhaseShareNoMovingBodyAndTheOrderIsAPermutation) {
           for (const std::size_t body : {std::size_t{c.id.body_a}, std::size_t{c.id.body_b}}) {
             if (s.model.is_fixed(body)) continue;
             if (owner[body] < 0) owner[body] = static_cast<int>(g);
-            ASSERT_EQ(owner[body], static_cast<int>(g)) << "body " << body << " in groups " << owner[body] << " and " << g
-                                                        << " of phase " << p << ", " << blocks << " blocks";
+            ASSERT_EQ(owner[body], static_cast<int>(g)) << "body " << body << " in groups " << owner[body] << " and "
+                                                        << g << " of phase " << p << ", " << blocks << " blocks";
           }
         }
       }
@@ -175,7 +175,8 @@ TEST(SweepPlan, GroupsOfOnePhaseShareNoMovingBodyAndTheOrderIsAPermutation) {
     if (blocks == 16) {
       // Leaves hold most contacts (the point of spatial blocks): the interface contacts swept at
       // the root, on one thread, are a thin layer (measured: 5.8% here, the leaves 75%).
-      const std::size_t root = plan.group_start[plan.group_start.size() - 1] - plan.group_start[plan.group_start.size() - 2];
+      const std::size_t root =
+          plan.group_start[plan.group_start.size() - 1] - plan.group_start[plan.group_start.size() - 2];
       const std::size_t leaves = plan.group_start[plan.phase_start[1]];
       EXPECT_LT(static_cast<double>(root), 0.1 * static_cast<double>(contacts.size()));
       EXPECT_GT(static_cast<double>(leaves), 0.6 * static_cast<double>(contacts.size()));
@@ -262,8 +263,10 @@ TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
       BodyVelocities velocity = free;
       const SolverStats stats = solve_contacts(s.model, s.state, options, contacts, velocity);
       EXPECT_EQ(stats.iterations, options.max_iterations);
-      EXPECT_TRUE(same_bits(velocity.linear, reference_velocity.linear)) << blocks << " blocks, " << threads << " threads";
-      EXPECT_TRUE(same_bits(velocity.angular, reference_velocity.angular)) << blocks << " blocks, " << threads << " threads";
+      EXPECT_TRUE(same_bits(velocity.linear, reference_velocity.linear))
+          << blocks << " blocks, " << threads << " threads";
+      EXPECT_TRUE(same_bits(velocity.angular, reference_velocity.angular))
+          << blocks << " blocks, " << threads << " threads";
       bool impulses_equal = true;
       for (std::size_t k = 0; k < contacts.size(); ++k) {
         impulses_equal = impulses_equal && std::memcmp(contacts[k].impulse.data(), reference_contacts[k].impulse.data(),
@@ -308,8 +311,8 @@ TEST(SweepPlan, BlockedSweepsConvergeOnColumnsAtRest) {
       s.options.solver.max_iterations = 100000;
       s.options.solver.polish_after = 0;
       s.advance();
-      EXPECT_TRUE(s.last_report.solver.converged) << s.last_report.solver.iterations << " sweeps, residual "
-                                                  << s.last_report.solver.residual;
+      EXPECT_TRUE(s.last_report.solver.converged)
+          << s.last_report.solver.iterations << " sweeps, residual " << s.last_report.solver.residual;
       double floor_impulse = 0.0, weight = 0.0;
       for (std::size_t b = 1; b < s.model.body_count(); ++b) weight += s.model.mass[b] * 9.81;
       for (const Contact& c : s.workspace.carry.contacts) {

@@ -70,8 +70,8 @@ TEST(RotationResistance, SphereOnAnInclineStopsBelowTanAlphaEqualMuR) {
   const Roll rolling = roll_down(alpha, mu_r, 0.5);
   const double expected = 5.0 / 7.0 * g * (std::sin(alpha) - mu_r * std::cos(alpha)) * 0.5;
   std::cout << "rolling resistance: 0.99 mu_r moved " << below.displacement << " m, 1.01 mu_r " << above.displacement
-            << " m; at 3 mu_r v = " << rolling.velocity << " m/s (closed form " << expected << "), spin r / v = "
-            << rolling.spin * radius / rolling.velocity << "\n";
+            << " m; at 3 mu_r v = " << rolling.velocity << " m/s (closed form " << expected
+            << "), spin r / v = " << rolling.spin * radius / rolling.velocity << "\n";
   EXPECT_LT(below.displacement, 1e-9);
   EXPECT_GT(above.displacement, 1e-6);
   EXPECT_NEAR(rolling.velocity, expected, 0.01 * expected);

@@ -17,8 +17,8 @@ namespace {
 using testing::TestScene;
 
 struct Bounce {
-  Vec3 velocity;          ///< of the centre after the impact, m/s
-  double contact_slip;    ///< tangential velocity of the contact point after the impact, m/s
+  Vec3 velocity;        ///< of the centre after the impact, m/s
+  double contact_slip;  ///< tangential velocity of the contact point after the impact, m/s
 };
 
 Bounce oblique_bounce(double friction, double normal_restitution, double tangential_restitution) {

@@ -18,9 +18,9 @@ namespace rubble {
 namespace {
 
 struct Reference {
-  double gap = 0.0;             // signed: distance, or -(penetration depth)
-  Vec3 normal = Vec3::Zero();   // from A to B
-  bool unique = true;           // the optimal normal is isolated (compare normals only then)
+  double gap = 0.0;            // signed: distance, or -(penetration depth)
+  Vec3 normal = Vec3::Zero();  // from A to B
+  bool unique = true;          // the optimal normal is isolated (compare normals only then)
 };
 
 /// Closest point of triangle (a, b, c) to the origin (Voronoi regions; Ericson 2005 sec. 5.1.5).
@@ -120,12 +120,13 @@ void check_random_pairs(int pairs, int min_vertices, int max_vertices, std::uint
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   int overlapping = 0, apart = 0, normals_compared = 0;
   for (int k = 0; k < pairs; ++k) {
-    const PolyhedronInWorld a{&pool[pick(rng)], Vec3(uniform(rng), uniform(rng), uniform(rng)), random_rotation(rng).toRotationMatrix()};
+    const PolyhedronInWorld a{&pool[pick(rng)], Vec3(uniform(rng), uniform(rng), uniform(rng)),
+                              random_rotation(rng).toRotationMatrix()};
     const ConvexPolyhedron& shape_b = pool[pick(rng)];
     // Centre distance uniform up to the sum of the bounding radii: about half the pairs overlap.
     const double reach = a.shape->bounding_radius + shape_b.bounding_radius;
     const PolyhedronInWorld b{&shape_b, a.position + uniform(rng) * reach * random_direction(rng),
-                             random_rotation(rng).toRotationMatrix()};
+                              random_rotation(rng).toRotationMatrix()};
     const Reference ref = minkowski_reference(a, b);
     const CommonPlane plane = find_common_plane(a, b, nullptr, std::numeric_limits<double>::infinity());
     ASSERT_TRUE(plane.complete);

@@ -27,7 +27,9 @@ struct Scene {
     const int id = add_polyhedron_grain(model, make_box_polyhedron(Vec3::Constant(side / 2)), 0);
     return place(id, position, orientation);
   }
-  std::uint32_t sphere(double radius, const Vec3& position) { return place(add_sphere(model, radius, 0), position, Quat::Identity()); }
+  std::uint32_t sphere(double radius, const Vec3& position) {
+    return place(add_sphere(model, radius, 0), position, Quat::Identity());
+  }
   std::uint32_t plane(const Vec3& point, const Vec3& normal) {
     return place(add_plane_wall(model, normal, 0), point, Quat::Identity());
   }
@@ -101,7 +103,8 @@ TEST(PolyhedronContacts, OctagonIsReducedToFourPointsCarryingTheArea) {
   // The kept quadrilateral covers more than half of the octagon (area 2 (sqrt 2 - 1) ~ 0.83).
   std::vector<Vec3> p;
   for (const Contact& c : contacts) p.push_back(c.point);
-  std::sort(p.begin(), p.end(), [](const Vec3& x, const Vec3& y) { return std::atan2(x.y(), x.x()) < std::atan2(y.y(), y.x()); });
+  std::sort(p.begin(), p.end(),
+            [](const Vec3& x, const Vec3& y) { return std::atan2(x.y(), x.x()) < std::atan2(y.y(), y.x()); });
   double area = 0.0;
   for (std::size_t i = 0; i < 4; ++i) area += 0.5 * (p[i].x() * p[(i + 1) % 4].y() - p[(i + 1) % 4].x() * p[i].y());
   EXPECT_GT(area, 0.5);
@@ -188,7 +191,8 @@ TEST(PolyhedronContacts, FlushFacesShiftedByAHairKeepFourPointsAndTheirGaps) {
     for (const double shift : {1e-9, 1e-7, 1e-5}) {
       Scene s;
       const auto a = s.cube(0.05, Vec3::Zero());
-      const auto b = s.cube(0.05, Vec3(shift, -0.5 * shift, 0.05), Quat(Eigen::AngleAxisd(tilt, Vec3(1, 1, 0).normalized())));
+      const auto b =
+          s.cube(0.05, Vec3(shift, -0.5 * shift, 0.05), Quat(Eigen::AngleAxisd(tilt, Vec3(1, 1, 0).normalized())));
       const ContactList contacts = s.polyhedra(a, b);
       {
         auto in_world = [&](std::uint32_t body) {
@@ -201,7 +205,8 @@ TEST(PolyhedronContacts, FlushFacesShiftedByAHairKeepFourPointsAndTheirGaps) {
         EXPECT_LT(std::abs(plane.gap), 0.05 * tilt) << "shift " << shift << " tilt " << tilt;
       }
       ASSERT_EQ(contacts.size(), 4u) << "shift " << shift << " tilt " << tilt;
-      for (const Contact& c : contacts) EXPECT_LT(std::abs(c.gap), 0.05 * tilt + 1e-12) << "shift " << shift << " tilt " << tilt;
+      for (const Contact& c : contacts)
+        EXPECT_LT(std::abs(c.gap), 0.05 * tilt + 1e-12) << "shift " << shift << " tilt " << tilt;
     }
   }
 }
@@ -218,7 +223,8 @@ TEST(PolyhedronContacts, DeepestPointIsAlwaysAContactPoint) {
   for (int trial = 0; trial < 500; ++trial) {
     Scene t;
     const auto a = t.cube(1.0, Vec3::Zero(), random_rotation());
-    const auto b = t.cube(1.0, Vec3(0.2 * uniform(rng), 0.2 * uniform(rng), 1.0 + 0.4 * uniform(rng)), random_rotation());
+    const auto b =
+        t.cube(1.0, Vec3(0.2 * uniform(rng), 0.2 * uniform(rng), 1.0 + 0.4 * uniform(rng)), random_rotation());
     auto in_world = [&](std::uint32_t body) {
       return PolyhedronInWorld{&t.model.polyhedra[static_cast<std::size_t>(t.model.shape_index[body])],
                                t.state.position[body], t.state.orientation[body].toRotationMatrix()};

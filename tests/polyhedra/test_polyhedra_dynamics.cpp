@@ -25,7 +25,9 @@ int add_cube(TestScene& s, double side, const Vec3& position, const Quat& orient
   return id;
 }
 
-double max_angular_speed(const State& state, int body) { return state.angular_velocity[static_cast<std::size_t>(body)].norm(); }
+double max_angular_speed(const State& state, int body) {
+  return state.angular_velocity[static_cast<std::size_t>(body)].norm();
+}
 
 // A 10 cm cube set exactly on a floor: 3 or 4 contact points every step, no rotation
 // (|w| < 1e-8 rad/s) and no drift over 10^4 steps.
@@ -172,14 +174,16 @@ PourResult pour(long steps, double time_step) {
       if (s.model.is_fixed(b)) continue;
       const Mat3 r = s.state.orientation[b].toRotationMatrix();
       const Vec3 w = r.transpose() * s.state.angular_velocity[b];
-      e += 0.5 * s.model.mass[b] * s.state.velocity[b].squaredNorm() + 0.5 * w.dot(s.model.principal_inertia[b].cwiseProduct(w));
+      e += 0.5 * s.model.mass[b] * s.state.velocity[b].squaredNorm() +
+           0.5 * w.dot(s.model.principal_inertia[b].cwiseProduct(w));
     }
     return e;
   };
   for (long k = 0; k < steps; ++k) {
     s.advance();
     for (const Contact& c : s.workspace.carry.contacts) {
-      if (s.model.is_grain(c.id.body_a) && s.model.is_grain(c.id.body_b)) result.deepest = std::max(result.deepest, -c.gap);
+      if (s.model.is_grain(c.id.body_a) && s.model.is_grain(c.id.body_b))
+        result.deepest = std::max(result.deepest, -c.gap);
     }
     result.last = kinetic_energy();
     result.peak = std::max(result.peak, result.last);

@@ -135,7 +135,9 @@ TEST(PolyhedronBuild, TopologyOfACube) {
     for (std::size_t k = 0; k < lf.size(); ++k) found |= lf[k] == i && lf[(k + 1) % lf.size()] == j;
     EXPECT_TRUE(found);
     // The two face normals are perpendicular for a cube.
-    EXPECT_NEAR(shape.face_normals[static_cast<std::size_t>(left)].dot(shape.face_normals[static_cast<std::size_t>(right)]), 0.0, 1e-15);
+    EXPECT_NEAR(
+        shape.face_normals[static_cast<std::size_t>(left)].dot(shape.face_normals[static_cast<std::size_t>(right)]),
+        0.0, 1e-15);
   }
   for (const auto& neighbours : shape.vertex_neighbours) EXPECT_EQ(neighbours.size(), 3u);
   for (std::size_t f = 0; f < 6; ++f) EXPECT_NEAR(shape.face_offsets[f], 1.0, 1e-15);

@@ -53,10 +53,11 @@ TEST(PolyhedronFile, ReadsATriangulatedObjCubeAndMergesItsFaces) {
 TEST(PolyhedronFile, ClockwiseFilesAreTurnedAround) {
   std::string text = cube_off;
   // Reverse every face: "4 a b c d" -> "4 d c b a".
-  text = "OFF\n8 6 0\n"
-         "9 -0.5 -0.5\n11 -0.5 -0.5\n9 0.5 -0.5\n11 0.5 -0.5\n"
-         "9 -0.5 0.5\n11 -0.5 0.5\n9 0.5 0.5\n11 0.5 0.5\n"
-         "4 2 6 4 0\n4 5 7 3 1\n4 4 5 1 0\n4 3 7 6 2\n4 1 3 2 0\n4 6 7 5 4\n";
+  text =
+      "OFF\n8 6 0\n"
+      "9 -0.5 -0.5\n11 -0.5 -0.5\n9 0.5 -0.5\n11 0.5 -0.5\n"
+      "9 -0.5 0.5\n11 -0.5 0.5\n9 0.5 0.5\n11 0.5 0.5\n"
+      "4 2 6 4 0\n4 5 7 3 1\n4 4 5 1 0\n4 3 7 6 2\n4 1 3 2 0\n4 6 7 5 4\n";
   const ConvexPolyhedron box = load_polyhedron_file(write_file("cw.off", text));
   EXPECT_NEAR(box.volume, 2.0, 1e-12);
 }

@@ -105,7 +105,7 @@ TEST(MergeCoplanarFaces, SubdividedCubeFaceBecomesOneSquare) {
   for (int k = 0; k < 8; ++k) v.emplace_back((k & 1) ? 0.5 : -0.5, (k & 2) ? 0.5 : -0.5, (k & 4) ? 0.5 : -0.5);
   v.emplace_back(0, 0, 0.5 + 1e-4);
   std::vector<std::vector<int>> faces = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1},
-                                         {4, 5, 8}, {5, 7, 8}, {7, 6, 8}, {6, 4, 8}};
+                                         {4, 5, 8},    {5, 7, 8},    {7, 6, 8},    {6, 4, 8}};
   std::vector<int> interior;
   const auto merged = merge_coplanar_faces(v, faces, 1.0, interior);
   EXPECT_EQ(merged.size(), 6u);

@@ -159,7 +159,8 @@ TEST(Metrics, SeveralPointsOfOnePairAreOneContactAndZeroImpulsesDoNotCount) {
   model.materials = {{"rock", 1000.0}};
   model.contact_laws.reset(1, ContactLaw{});
   const Vec3 half(0.5, 0.5, 0.5);
-  for (int i = 0; i < 2; ++i) add_polyhedron(model, test::box_polyhedron(half), 1.0, test::box_inertia_per_density(half), 0);
+  for (int i = 0; i < 2; ++i)
+    add_polyhedron(model, test::box_polyhedron(half), 1.0, test::box_inertia_per_density(half), 0);
   add_sphere(model, 0.5, 0);
   State state;
   state.resize(3);
@@ -225,7 +226,7 @@ TEST(GrainSizes, CircumscribedSphereOfAPyramidIsNotTheBallAboutItsCentroid) {
   ASSERT_NEAR(model.bounding_radius[0], 2.25, 1e-12);  // the old <d> was twice this
   const GrainSizes sizes = grain_sizes(model);
   EXPECT_NEAR(sizes.circumscribed_diameter[0], 10.0 / 3.0, 1e-12);
-  EXPECT_DOUBLE_EQ(sizes.circumscribed_diameter[1], 1.5);  // a sphere: its diameter
+  EXPECT_DOUBLE_EQ(sizes.circumscribed_diameter[1], 1.5);                       // a sphere: its diameter
   EXPECT_NEAR(sizes.equivalent_diameter[0], std::cbrt(6.0 * 2.0 / pi), 1e-12);  // V = (1/3) 2 * 3 = 2
   State state;
   state.resize(2);
@@ -262,7 +263,8 @@ TEST(Metrics, DeepestOverlapDetachedAndEscapingGrains) {
   // field of the others, 1/2 |v - v_cm|^2 - G sum_j m_j / r_j, is positive (escape speed
   // sqrt(2 G 3 m / 1000 m) ~ 1e-5 m/s for these 4.2 t grains). A listed point joins its pair
   // even without impulse (grain 1 - grain 4): grain 4 is in the aggregate.
-  const std::vector<Vec3> centres{Vec3(0, 0, 0), Vec3(1.99, 0, 0), Vec3(1000, 0, 0), Vec3(-1000, 0, 0), Vec3(3.98, 0, 0)};
+  const std::vector<Vec3> centres{Vec3(0, 0, 0), Vec3(1.99, 0, 0), Vec3(1000, 0, 0), Vec3(-1000, 0, 0),
+                                  Vec3(3.98, 0, 0)};
   Packing p = spheres_at(centres, 1.0);
   p.state.velocity[3] = Vec3(-1e-3, 0, 0);
   p.state.velocity[0] = Vec3(1e-3, 0, 0);  // v_cm = 0: grain 2 is at rest in the aggregate's frame
@@ -358,7 +360,7 @@ TEST(KineticEnergy, SphereTranslationPlusRotation) {
   add_sphere(model, 0.5, 0);
   State state;
   state.resize(1);
-  state.velocity[0] = Vec3(1.0, -2.0, 2.0);        // |v|^2 = 9
+  state.velocity[0] = Vec3(1.0, -2.0, 2.0);         // |v|^2 = 9
   state.angular_velocity[0] = Vec3(0.0, 3.0, 4.0);  // |w|^2 = 25
   const double m = 2000.0 * 4.0 / 3.0 * pi * 0.125;
   const double expected = 0.5 * m * 9.0 + 0.5 * (0.4 * m * 0.25) * 25.0;

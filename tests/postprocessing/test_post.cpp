@@ -53,7 +53,8 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   const fs::path run = dir / "run.h5";
   // The same run twice: once ended at rest, once stopped by a signal (in a subfolder).
   fs::create_directories(dir / "stopped");
-  for (const auto& [path, status] : {std::pair{run, RunStatus::at_rest}, std::pair{dir / "stopped" / "run.h5", RunStatus::interrupted}}) {
+  for (const auto& [path, status] :
+       {std::pair{run, RunStatus::at_rest}, std::pair{dir / "stopped" / "run.h5", RunStatus::interrupted}}) {
     const std::array<std::string_view, 1> stages{"all"};
     RunFile file = RunFile::create(path, model, "", stages);
     file.set_status(status);
@@ -90,7 +91,7 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   StudyOptions study;
   study.output_directory = dir / "study";
   study.plots = false;
-  study.stable_after = 0.45;  // snapshots at t = 0.5 and 0.6
+  study.stable_after = 0.45;         // snapshots at t = 0.5 and 0.6
   post_process_study({dir}, study);  // finds both run.h5, skips post/metrics.h5
   auto study_rows = read_csv(dir / "study" / "study.csv");
   ASSERT_EQ(study_rows.size(), 3u);
@@ -112,7 +113,7 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   // Printed at 4 significant digits (a window mean, not a 17-digit number).
   EXPECT_EQ(cell(1, "Z_max"), "1.600");  // the chain: 2 - 2/N
   EXPECT_EQ(cell(1, "Z_max_spread"), "0");
-  EXPECT_EQ(cell(1, "rest_time"), "0.6000");  // the run's end, at rest
+  EXPECT_EQ(cell(1, "rest_time"), "0.6000");         // the run's end, at rest
   EXPECT_EQ(cell(1, "D_max_over_mean_d"), "5.000");  // 5 unit spheres in a row
   EXPECT_EQ(cell(1, "detached_grains"), "0");
   // The stopped run is listed with its status and left out of the plots; no rest time.

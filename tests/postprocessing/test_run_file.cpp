@@ -197,14 +197,22 @@ TEST(RunFile, WritesTheDocumentedLayoutAndValues) {
     faces += p.faces.size();
     polyhedron_face_offset.push_back(faces);
   }
-  expected["sizes"] = {{"N", n},     {"P", model.polyhedra.size()}, {"V", vertices}, {"F", faces}, {"K", face_vertices},
-                       {"W", 1},     {"B", 1},                      {"M", 2},        {"S", rows}};
+  expected["sizes"] = {{"N", n},
+                       {"P", model.polyhedra.size()},
+                       {"V", vertices},
+                       {"F", faces},
+                       {"K", face_vertices},
+                       {"W", 1},
+                       {"B", 1},
+                       {"M", 2},
+                       {"S", rows}};
   d["/model/body_shape_kind"] = {0, 1, 2, 0, 1, 3};
   d["/model/body_shape_index"] = {0, 0, 0, 1, 1, 0};
   d["/model/material"] = {0, 1, 0, 1, 0, 1};
   d["/model/mass"] = doubles(model.mass);
   d["/model/volume"] = doubles(model.volume);
-  d["/model/bounding_radius"] = {0.5, Vec3(0.5, 0.25, 0.125).norm(), "inf", 0.25, model.bounding_radius[4], Vec3(1, 2, 3).norm()};
+  d["/model/bounding_radius"] = {0.5,  Vec3(0.5, 0.25, 0.125).norm(), "inf",
+                                 0.25, model.bounding_radius[4],      Vec3(1, 2, 3).norm()};
   d["/model/radius"] = {0.5, 0.0, 0.0, 0.25, 0.0, 0.0};
   d["/model/principal_inertia"] = vec3s(model.principal_inertia);
   d["/model/polyhedra/vertices"] = vec3s(all_vertices);

@@ -74,13 +74,14 @@ Scene make_scene() {
   Model& model = s.model;
   model.materials = {{"rock", 2000.0}};
   model.contact_laws.reset(1, ContactLaw{});
-  add_sphere(model, 0.5, 0);                                                    // 0
-  add_sphere(model, 0.25, 0);                                                   // 1
+  add_sphere(model, 0.5, 0);   // 0
+  add_sphere(model, 0.25, 0);  // 1
   const Vec3 half(0.5, 0.25, 0.125);
-  add_polyhedron(model, test::box_polyhedron(half), test::box_volume(half), test::box_inertia_per_density(half), 0);  // 2
-  add_polyhedron(model, test::tetrahedron(0.3), test::tetrahedron_volume(0.3), Vec3::Constant(1e-3), 0);            // 3
-  add_plane_wall(model, Vec3::UnitZ(), 0);                                      // 4
-  add_box_wall(model, Vec3(1.0, 2.0, 3.0), 0);                                  // 5
+  add_polyhedron(model, test::box_polyhedron(half), test::box_volume(half), test::box_inertia_per_density(half),
+                 0);                                                                                      // 2
+  add_polyhedron(model, test::tetrahedron(0.3), test::tetrahedron_volume(0.3), Vec3::Constant(1e-3), 0);  // 3
+  add_plane_wall(model, Vec3::UnitZ(), 0);                                                                // 4
+  add_box_wall(model, Vec3(1.0, 2.0, 3.0), 0);                                                            // 5
   s.state.resize(model.body_count());
   s.state.time = 0.5;
   for (std::size_t i = 0; i < model.body_count(); ++i) {
@@ -175,8 +176,8 @@ TEST(VtkSeries, ReadBackWithVtkMatchesTheState) {
     EXPECT_EQ(cells->GetArray("normal_impulse")->GetTuple1(k), c.impulse.x());
     EXPECT_NEAR(cells->GetArray("normal_force")->GetTuple1(k), c.impulse.x() / h, 1e-12);
     EXPECT_NEAR(cells->GetArray("tangential_force")->GetTuple1(k), c.impulse.tail<2>().norm() / h, 1e-12);
-    const Vec3 world_force = (c.impulse.x() * c.frame.col(0) + c.impulse.y() * c.frame.col(1) +
-                              c.impulse.z() * c.frame.col(2)) / h;
+    const Vec3 world_force =
+        (c.impulse.x() * c.frame.col(0) + c.impulse.y() * c.frame.col(1) + c.impulse.z() * c.frame.col(2)) / h;
     EXPECT_NEAR((tuple3(cells->GetArray("force"), k) - world_force).norm(), 0.0, 1e-12);
     EXPECT_EQ(tuple3(cells->GetArray("contact_point"), k), c.point);
   }

@@ -139,7 +139,8 @@ TEST(CubicGrid, OneGrainPerCellInsideItsCell) {
   const Vec3 origin = options.center - Vec3::Constant(25.0);
   const double eps = 1e-12 * 50.0;
   for (std::size_t index = 0; index < grains.size(); ++index) {
-    const Vec3 ijk(static_cast<double>(index % 5), static_cast<double>((index / 5) % 5), static_cast<double>(index / 25));
+    const Vec3 ijk(static_cast<double>(index % 5), static_cast<double>((index / 5) % 5),
+                   static_cast<double>(index / 25));
     const Vec3 corner = origin + cell * ijk;
     for (int axis = 0; axis < 3; ++axis) {
       EXPECT_GE(grains[index].position[axis] - grains[index].radius, corner[axis] - eps) << index;
@@ -183,8 +184,7 @@ double cdf_distance(const SizeRange& sizes, Cdf exact, int n) {
   double worst = 0.0;
   for (int k = 1; k < 50; ++k) {
     const double r = sizes.radius_min + (sizes.radius_max - sizes.radius_min) * k / 50.0;
-    const double empirical =
-        static_cast<double>(std::upper_bound(radii.begin(), radii.end(), r) - radii.begin()) / n;
+    const double empirical = static_cast<double>(std::upper_bound(radii.begin(), radii.end(), r) - radii.begin()) / n;
     worst = std::max(worst, std::abs(empirical - exact(r)));
   }
   return worst;
@@ -195,7 +195,9 @@ double cdf_distance(const SizeRange& sizes, Cdf exact, int n) {
 // other one) is more than 0.1 away.
 TEST(DrawRadius, UniformRadiusFollowsItsCdf) {
   const SizeRange sizes{1.0, 3.0, SizeDistribution::uniform_radius, {}, true};
-  EXPECT_LT(cdf_distance(sizes, [](double r) { return (r - 1.0) / 2.0; }, 200000), 0.006);
+  EXPECT_LT(cdf_distance(
+                sizes, [](double r) { return (r - 1.0) / 2.0; }, 200000),
+            0.006);
 }
 
 TEST(DrawRadius, UniformVolumeFractionFollowsItsCdf) {

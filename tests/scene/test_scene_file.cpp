@@ -241,7 +241,8 @@ radius = 0.5
 position = [2.0, 0.0, 0.0]
 [gravity]
 type = "direct"
-backend = ")") + backend + "\"\n";
+backend = ")") +
+           backend + "\"\n";
   };
   const Scene cpu = parse_scene(scene_with("cpu"), "cpu.toml");
   EXPECT_EQ(cpu.run.step.gravity.self_gravity.backend, gravity::Backend::cpu);
@@ -282,7 +283,8 @@ density = 1
 materials = ["m", "m"]
 friction = 0.3
 work_of_adhesion = 0.25
-cohesion = )") + cohesion + R"(
+cohesion = )") +
+           cohesion + R"(
 [[bodies]]
 shape = "sphere"
 radius = 0.5
@@ -352,7 +354,8 @@ TEST(DefaultScene, IsTheExampleFileAndLoadsFromIt) {
 TEST(DefaultScene, PolyhedraVariantIsTheExampleFileAndHoldsOnlyPolyhedra) {
   const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion-1000-polyhedra.toml";
   EXPECT_EQ(read_text(example), default_scene_toml(DefaultScene::polyhedra))
-      << "regenerate with: rubble run --default-scene polyhedra --print-default-scene > examples/accretion-1000-polyhedra.toml";
+      << "regenerate with: rubble run --default-scene polyhedra --print-default-scene > "
+         "examples/accretion-1000-polyhedra.toml";
   const Scene scene = default_scene(DefaultScene::polyhedra);
   const Scene spheres = default_scene();
   std::size_t polyhedra = 0, grains = 0;
@@ -385,7 +388,8 @@ TEST(Examples, EveryExampleFileParses) {
 // density 5164, diameters in [7.5, 10] m, mu = 0 unless named, dt = "auto", until = "rest".
 TEST(Examples, AccretionStudyFilesAreTheirCases) {
   std::size_t files = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion")) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion")) {
     if (entry.path().extension() != ".toml") continue;
     ++files;
     const std::string stem = entry.path().stem().string();
@@ -537,7 +541,8 @@ std::string cloud_scene(const std::string& generator, const std::string& time = 
                         int seed = 1) {
   return "seed = " + std::to_string(seed) + "\n[time]\n" + time +
          "[gravity]\ntype = \"tree\"\n[[materials]]\nname = \"rock\"\ndensity = 5164.0\n"
-         "[default_contact_law]\nfriction = 0.0\n[[generators]]\n" + generator;
+         "[default_contact_law]\nfriction = 0.0\n[[generators]]\n" +
+         generator;
 }
 
 TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
@@ -555,10 +560,11 @@ TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
   EXPECT_DOUBLE_EQ(automatic.run.rest.coordination_change, 0.05 * std::sqrt(1000.0 / 64.0));  // 4^3 grains
   EXPECT_EQ(automatic.run.rest.contact_change, 0.2);
   EXPECT_DOUBLE_EQ(automatic.run.rest.duration, automatic_rest_criterion(scales).duration);
-  const Scene given = parse_scene(
-      cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_speed = 2.5\nrest_quantile = 1\n"
-                        "rest_coordination_change = 0.125\nrest_contact_change = 0.25\nrest_duration = 0\n"),
-      "given.toml");
+  const Scene given =
+      parse_scene(cloud_scene(grid,
+                              "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_speed = 2.5\nrest_quantile = 1\n"
+                              "rest_coordination_change = 0.125\nrest_contact_change = 0.25\nrest_duration = 0\n"),
+                  "given.toml");
   EXPECT_FALSE(given.run.automatic_time_step);
   EXPECT_EQ(given.run.step.integrator.time_step, 0.5);
   EXPECT_EQ(given.run.rest.speed, 2.5);
@@ -574,7 +580,8 @@ TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
   EXPECT_EQ(again.run.rest.contact_change, 0.25);
   // The key of the old energy criterion says what replaced it.
   try {
-    parse_scene(cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_kinetic_energy = 2.5\n"), "old.toml");
+    parse_scene(cloud_scene(grid, "dt = 0.5\nend_time = 9000.0\nuntil = \"rest\"\nrest_kinetic_energy = 2.5\n"),
+                "old.toml");
     ADD_FAILURE() << "rest_kinetic_energy was accepted";
   } catch (const SceneError& error) {
     EXPECT_NE(std::string(error.what()).find("replaced by rest_speed"), std::string::npos) << error.what();
@@ -589,9 +596,10 @@ TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
 }
 
 TEST(TimeControl, AutoStepWithoutAnyTimeScaleIsASceneError) {
-  const std::string text = "[time]\ndt = \"auto\"\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
-                           "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"sphere\"\nradius = 1.0\n"
-                           "position = [0, 0, 0]\n";
+  const std::string text =
+      "[time]\ndt = \"auto\"\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
+      "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"sphere\"\nradius = 1.0\n"
+      "position = [0, 0, 0]\n";
   try {
     parse_scene(text, "still.toml");
     FAIL() << "expected a SceneError";
@@ -611,8 +619,9 @@ Vec3 cell_corner(std::size_t ordinal, std::size_t k, double cell) {
 // The paper's polyhedra: every vertex of every grain inside its own cell of the grid (so no two
 // grains overlap), circumscribed diameters in [d_min, d_max], n_v in [10, 70] before merging.
 TEST(PolyhedronGenerator, CubicGridPolyhedraStayInsideTheirCells) {
-  const std::string grid = "type = \"cubic_grid\"\ncells_per_side = 4\nshape = \"polyhedron\"\nradius_min = 3.75\n"
-                           "radius_max = 5.0\ndistribution = \"uniform_volume_fraction\"\n";
+  const std::string grid =
+      "type = \"cubic_grid\"\ncells_per_side = 4\nshape = \"polyhedron\"\nradius_min = 3.75\n"
+      "radius_max = 5.0\ndistribution = \"uniform_volume_fraction\"\n";
   const Scene scene = parse_scene(cloud_scene(grid), "poly.toml");
   ASSERT_EQ(scene.model.body_count(), 64u);
   ASSERT_EQ(scene.model.polyhedra.size(), 64u);
@@ -640,18 +649,21 @@ TEST(PolyhedronGenerator, CubicGridPolyhedraStayInsideTheirCells) {
 }
 
 TEST(PolyhedronGenerator, MixFractionAndSameSeedSameFile) {
-  const std::string mix = "type = \"cubic_grid\"\ncells_per_side = 8\nshape = \"mix\"\npolyhedron_fraction = 0.25\n"
-                          "radius_min = 3.75\nradius_max = 5.0\n";
+  const std::string mix =
+      "type = \"cubic_grid\"\ncells_per_side = 8\nshape = \"mix\"\npolyhedron_fraction = 0.25\n"
+      "radius_min = 3.75\nradius_max = 5.0\n";
   const Scene scene = parse_scene(cloud_scene(mix), "mix.toml");
   // 512 grains, each a polyhedron with probability 1/4: 128 +- 10 (binomial sd); tolerance 4 sd.
   EXPECT_NEAR(static_cast<double>(scene.model.polyhedra.size()), 128.0, 40.0);
   EXPECT_EQ(scene.model.polyhedra.size() + scene.model.spheres.size(), 512u);
   // Written out twice from the same seed: the same file; another seed: another file.
-  const std::string small = "type = \"cubic_grid\"\ncells_per_side = 3\nshape = \"mix\"\npolyhedron_fraction = 0.5\n"
-                            "radius_min = 3.75\nradius_max = 5.0\n";
+  const std::string small =
+      "type = \"cubic_grid\"\ncells_per_side = 3\nshape = \"mix\"\npolyhedron_fraction = 0.5\n"
+      "radius_min = 3.75\nradius_max = 5.0\n";
   const std::string a = scene_to_toml(parse_scene(cloud_scene(small), "a.toml"));
   const std::string b = scene_to_toml(parse_scene(cloud_scene(small), "a.toml"));
-  const std::string c = scene_to_toml(parse_scene(cloud_scene(small, "dt = \"auto\"\nend_time = 9000.0\n", 2), "a.toml"));
+  const std::string c =
+      scene_to_toml(parse_scene(cloud_scene(small, "dt = \"auto\"\nend_time = 9000.0\n", 2), "a.toml"));
   EXPECT_TRUE(a == b) << "the same seed wrote two different files";
   EXPECT_TRUE(a != c) << "another seed wrote the same file";
   // The written polyhedra read back: same shapes (vertices bit for bit), positions and masses
@@ -694,9 +706,10 @@ faces = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6], [1, 2, 6, 5], [
   EXPECT_LT((scene.state.position[1] - Vec3(5.5, 0.5, 0.5)).norm(), 1e-12);
   EXPECT_NEAR(scene.model.principal_inertia[1].x(), 2000.0 / 6.0, 1e-9);
   EXPECT_LE(scene.model.bounding_radius[0], 2.0);
-  const std::string missing = "[time]\ndt = 1e-3\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
-                              "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"polyhedron\"\n"
-                              "position = [0, 0, 0]\n";
+  const std::string missing =
+      "[time]\ndt = 1e-3\nend_time = 1.0\n[[materials]]\nname = \"rock\"\ndensity = 1.0\n"
+      "[default_contact_law]\nfriction = 0.0\n[[bodies]]\nshape = \"polyhedron\"\n"
+      "position = [0, 0, 0]\n";
   EXPECT_THROW(parse_scene(missing, "missing.toml"), SceneError);
 }
 

@@ -62,7 +62,8 @@ template <class Options>
 void expect_doc_matches(const std::string& heading, const std::vector<SectionKey<Options>>& keys,
                         const std::vector<std::string>& before = {}) {
   const std::vector<DocRow> rows = doc_rows(heading);
-  ASSERT_EQ(rows.size(), before.size() + keys.size()) << "keys in docs/scene-file.md " << heading << " vs the code's table";
+  ASSERT_EQ(rows.size(), before.size() + keys.size())
+      << "keys in docs/scene-file.md " << heading << " vs the code's table";
   for (std::size_t i = 0; i < before.size(); ++i) EXPECT_EQ(rows[i].key, before[i]) << heading << " row " << i;
   Options options{};
   for (std::size_t i = 0; i < keys.size(); ++i) {
@@ -138,8 +139,8 @@ void expect_keys_read_and_written(const std::vector<SectionKey<Options>>& keys,
                                   const std::function<Options(const Scene&)>& read) {
   for (const auto& key : keys) {
     const std::string value = inside_value(key);
-    const Scene scene = parse_scene(std::string(one_grain) + section_text(std::string(key.name) + " = " + value, key.name),
-                                    "keys.toml");
+    const Scene scene = parse_scene(
+        std::string(one_grain) + section_text(std::string(key.name) + " = " + value, key.name), "keys.toml");
     Options options = read(scene);
     EXPECT_EQ(written_value(key.option(options)), value) << key.name;
     EXPECT_NE(scene_to_toml(scene).find("\n" + std::string(key.name) + " = " + value + "\n"), std::string::npos)
@@ -174,8 +175,8 @@ TEST(SceneKeys, EveryOutputKeyIsReadWrittenAndChecked) {
 
 TEST(SceneKeys, EveryContactLawKeyIsReadWrittenAndChecked) {
   const auto law_section = [](const std::string& line, std::string_view key) {
-    return "[[contact_laws]]\nmaterials = [\"rock\", \"rock\"]\n" + std::string(key == "friction" ? "" : "friction = 0.5\n") +
-           line + "\n";
+    return "[[contact_laws]]\nmaterials = [\"rock\", \"rock\"]\n" +
+           std::string(key == "friction" ? "" : "friction = 0.5\n") + line + "\n";
   };
   expect_keys_read_and_written<ContactLaw>(scene_detail::contact_law_keys(), law_section,
                                            [](const Scene& s) { return s.model.contact_laws.get(0, 0); });

@@ -63,7 +63,8 @@ State spheres_in_a_box() {
       for (int x = 0; x < 11; ++x, ++i) {
         const double radius = 0.04 + 0.02 * static_cast<double>((i * 7919) % 17) / 16.0;
         const Vec3 position(-0.66 + 0.12 * x, -0.54 + 0.12 * y, 0.07 + 0.12 * z);
-        const Vec3 velocity(0.1 * static_cast<double>((i * 31) % 7 - 3), 0.1 * static_cast<double>((i * 17) % 5 - 2), -0.5);
+        const Vec3 velocity(0.1 * static_cast<double>((i * 31) % 7 - 3), 0.1 * static_cast<double>((i * 17) % 5 - 2),
+                            -0.5);
         s.sphere(radius, position, velocity);
       }
     }

@@ -31,15 +31,16 @@ TEST(PrescribedMotion, DriveBodyRefusesMalformedMotions) {
   Model model;
   model.materials.push_back(Material{"m", 1.0});
   const int ball = add_sphere(model, 0.1, 0);
-  EXPECT_THROW(drive_body(model, ball, PrescribedMotion{{0.0, 0.0}, {Vec3::Zero(), Vec3::Zero()},
-                                                        {Vec3::Zero(), Vec3::Zero()}}),
-               std::invalid_argument);
+  EXPECT_THROW(
+      drive_body(model, ball, PrescribedMotion{{0.0, 0.0}, {Vec3::Zero(), Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}}),
+      std::invalid_argument);
   EXPECT_THROW(drive_body(model, ball, PrescribedMotion{{0.0}, {}, {Vec3::Zero()}}), std::invalid_argument);
   EXPECT_FALSE(model.is_driven(0));
   drive_body(model, ball, PrescribedMotion{{0.0}, {Vec3::UnitX()}, {Vec3::Zero()}});
   EXPECT_TRUE(model.is_driven(0));
   EXPECT_TRUE(model.is_fixed(0));  // infinite mass for the solver
-  EXPECT_THROW(drive_body(model, ball, PrescribedMotion{{0.0}, {Vec3::UnitX()}, {Vec3::Zero()}}), std::invalid_argument);
+  EXPECT_THROW(drive_body(model, ball, PrescribedMotion{{0.0}, {Vec3::UnitX()}, {Vec3::Zero()}}),
+               std::invalid_argument);
 }
 
 // v(t) = t on [0, 1], then 1: the wall travels t^2 / 2, then 1/2 + (t - 1). With the knots on step

@@ -82,8 +82,8 @@ OrbitReturn circular_orbit(double theta, int steps) {
 
 // The default theta = 0.5 is the Stoermer-Verlet scheme (forces at the midpoint configuration,
 // core/integrator.hpp): second order, the return error falls as h^2. Measured: miss 2.07e-7 r
-// at T/h = 2e4, 8.27e-7 r at 1e4 (ratio 4.00; radius error 2.5e-8 r). Before the midpoint form (force at the start of the step) it
-// was first order: 9.50e-3 r at 2e4.
+// at T/h = 2e4, 8.27e-7 r at 1e4 (ratio 4.00; radius error 2.5e-8 r). Before the midpoint form (force at the start of
+// the step) it was first order: 9.50e-3 r at 2e4.
 TEST(CentralField, CircularOrbitReturnsToItsStartAfterOnePeriod) {
   const OrbitReturn fine = circular_orbit(0.5, 20000);
   const OrbitReturn coarse = circular_orbit(0.5, 10000);
@@ -179,7 +179,8 @@ TEST(EvaluateEvery, HoldsTheFieldBetweenEvaluationsAndMatchesADirectSumAtThem) {
       ++evaluations;
       EXPECT_EQ(s.workspace.carry.held_gravity_step, step);
       for (std::size_t b = 0; b < exact.size(); ++b) {
-        EXPECT_NEAR((s.workspace.carry.held_gravity[b] - exact[b]).norm(), 0.0, 1e-12 * exact[b].norm()) << "body " << b;
+        EXPECT_NEAR((s.workspace.carry.held_gravity[b] - exact[b]).norm(), 0.0, 1e-12 * exact[b].norm())
+            << "body " << b;
       }
       held = s.workspace.carry.held_gravity;
     } else {

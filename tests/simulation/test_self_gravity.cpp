@@ -23,7 +23,8 @@ double kinetic_energy(const Model& model, const State& state) {
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     const Mat3 R = state.orientation[b].toRotationMatrix();
     const Vec3 w = R.transpose() * state.angular_velocity[b];
-    energy += 0.5 * model.mass[b] * state.velocity[b].squaredNorm() + 0.5 * w.dot(model.principal_inertia[b].cwiseProduct(w));
+    energy +=
+        0.5 * model.mass[b] * state.velocity[b].squaredNorm() + 0.5 * w.dot(model.principal_inertia[b].cwiseProduct(w));
   }
   return energy;
 }
@@ -60,9 +61,9 @@ TEST(SelfGravity, ColdCollapseNeverGainsEnergy) {
     EXPECT_LE(total, previous + 1e-6 * std::abs(initial)) << "t = " << s.state.time << " s";
     previous = std::min(previous, total);
   }
-  EXPECT_GT(contacts_seen, 500);                    // the cloud did collapse into contact
+  EXPECT_GT(contacts_seen, 500);                      // the cloud did collapse into contact
   EXPECT_GT(peak_kinetic, 1e-3 * std::abs(initial));  // and fell
-  EXPECT_LT(previous, initial);                     // contacts dissipated
+  EXPECT_LT(previous, initial);                       // contacts dissipated
 }
 
 }  // namespace

@@ -119,8 +119,7 @@ TEST(Incline, JustBelowAndJustAboveTheRollingThreshold) {
   for (const double factor : {0.97, 1.03}) {
     const double angle = factor * threshold;
     const InclineResult r = roll_down_incline(angle, mu, 0.3);
-    const double expected =
-        factor < 1 ? 5.0 / 7.0 * g * std::sin(angle) : g * (std::sin(angle) - mu * std::cos(angle));
+    const double expected = factor < 1 ? 5.0 / 7.0 * g * std::sin(angle) : g * (std::sin(angle) - mu * std::cos(angle));
     EXPECT_NEAR(r.acceleration, expected, 0.01 * expected) << "angle factor " << factor;
   }
 }
@@ -175,11 +174,11 @@ TEST(HeadOn, ElasticEqualMassesExchangeVelocities) {
 /// Two spheres far apart on a Kepler orbit of eccentricity e under direct-sum self-gravity, started
 /// at apoapsis; `steps_per_orbit` steps an orbit, `orbits` orbits.
 struct KeplerRun {
-  double worst_energy_error = 0.0;  ///< max |E - E_0| / |E_0| over the run
-  double late_energy_error = 0.0;   ///< max of the same over the last tenth of the run (secular drift)
-  double early_energy_error = 0.0;  ///< ... over the first tenth
+  double worst_energy_error = 0.0;    ///< max |E - E_0| / |E_0| over the run
+  double late_energy_error = 0.0;     ///< max of the same over the last tenth of the run (secular drift)
+  double early_energy_error = 0.0;    ///< ... over the first tenth
   double worst_momentum_error = 0.0;  ///< max |L - L_0| / |L_0| (about the centre of mass)
-  double period_error = 0.0;        ///< |mean radial period - 2 pi sqrt(a^3 / G M)| / that period
+  double period_error = 0.0;          ///< |mean radial period - 2 pi sqrt(a^3 / G M)| / that period
   /// max |StepReport::potential_energy - (-G m1 m2 / r)| / |E_0|: the run's conservation monitor
   /// (potential from the step's own field evaluation at q_m, carried to q_{n+1} by the work:
   /// first-order in the displacement, so O(h^2) per step without accumulation).
@@ -208,10 +207,12 @@ KeplerRun kepler(int steps_per_orbit, int orbits, double eccentricity = 0.5) {
   s.options.integrator.time_step = period / steps_per_orbit;
   auto energy = [&] {
     const Vec3 d = s.state.position[1] - s.state.position[0];
-    return 0.5 * m1 * s.state.velocity[0].squaredNorm() + 0.5 * m2 * s.state.velocity[1].squaredNorm() - G * m1 * m2 / d.norm();
+    return 0.5 * m1 * s.state.velocity[0].squaredNorm() + 0.5 * m2 * s.state.velocity[1].squaredNorm() -
+           G * m1 * m2 / d.norm();
   };
   auto momentum = [&] {
-    return Vec3(m1 * s.state.position[0].cross(s.state.velocity[0]) + m2 * s.state.position[1].cross(s.state.velocity[1]));
+    return Vec3(m1 * s.state.position[0].cross(s.state.velocity[0]) +
+                m2 * s.state.position[1].cross(s.state.velocity[1]));
   };
   const double e0 = energy();
   const Vec3 l0 = momentum();
@@ -228,7 +229,8 @@ KeplerRun kepler(int steps_per_orbit, int orbits, double eccentricity = 0.5) {
     if (n >= steps - steps / 10) run.late_energy_error = std::max(run.late_energy_error, error);
     run.worst_momentum_error = std::max(run.worst_momentum_error, (momentum() - l0).norm() / l0.norm());
     const Vec3 d = s.state.position[1] - s.state.position[0];
-    run.monitor_error = std::max(run.monitor_error, std::abs(s.last_report.potential_energy + G * m1 * m2 / d.norm()) / std::abs(e0));
+    run.monitor_error =
+        std::max(run.monitor_error, std::abs(s.last_report.potential_energy + G * m1 * m2 / d.norm()) / std::abs(e0));
     const double radial = d.dot(s.state.velocity[1] - s.state.velocity[0]);
     if (previous_radial < 0.0 && radial >= 0.0) {  // periapsis passed: interpolate the zero of r.v
       periapsis_times.push_back(t_before + (s.state.time - t_before) * previous_radial / (previous_radial - radial));
@@ -236,7 +238,8 @@ KeplerRun kepler(int steps_per_orbit, int orbits, double eccentricity = 0.5) {
     previous_radial = radial;
   }
   if (periapsis_times.size() >= 2) {
-    const double measured = (periapsis_times.back() - periapsis_times.front()) / static_cast<double>(periapsis_times.size() - 1);
+    const double measured =
+        (periapsis_times.back() - periapsis_times.front()) / static_cast<double>(periapsis_times.size() - 1);
     run.period_error = std::abs(measured - period) / period;
   } else {
     run.period_error = 1.0;
@@ -254,8 +257,8 @@ TEST(KeplerOrbit, EnergyBoundedMomentumExactPeriodSecondOrder) {
   const KeplerRun run = kepler(1000, 100);
   std::cout << "Kepler e = 0.5, 1000 steps/orbit, 100 orbits: energy error max " << run.worst_energy_error
             << " (first tenth " << run.early_energy_error << ", last tenth " << run.late_energy_error << "), |dL|/|L| "
-            << run.worst_momentum_error << ", period error " << run.period_error << ", monitor's potential energy error "
-            << run.monitor_error << "\n";
+            << run.worst_momentum_error << ", period error " << run.period_error
+            << ", monitor's potential energy error " << run.monitor_error << "\n";
   EXPECT_LT(run.worst_energy_error, 1e-4);
   EXPECT_LT(run.monitor_error, 5e-4);  // O(h^2): measured 2.4e-4 at 1 000 steps an orbit
   EXPECT_LT(run.late_energy_error, 2.0 * run.early_energy_error);

@@ -66,7 +66,8 @@ double deepest_overlap(const TestScene& s) {
 double normal_impulse_on(const TestScene& s, int wall) {
   double r = 0.0;
   for (const Contact& c : s.workspace.carry.contacts)
-    if (c.id.body_a == static_cast<std::uint32_t>(wall) || c.id.body_b == static_cast<std::uint32_t>(wall)) r += c.impulse.x();
+    if (c.id.body_a == static_cast<std::uint32_t>(wall) || c.id.body_b == static_cast<std::uint32_t>(wall))
+      r += c.impulse.x();
   return r;
 }
 
@@ -197,8 +198,9 @@ TEST(StabilityPolyhedra, HeavyCubeOnLightOnes) {
     const int heavy = add_cube(s, st.side, Vec3(0, 0, st.side * 5.5), Quat::Identity(), 1);
     const auto light = static_cast<std::size_t>(st.cubes[0]);
     ASSERT_NEAR(s.model.mass[static_cast<std::size_t>(heavy)], ratio * s.model.mass[light], 1e-12 * ratio);
-    ASSERT_LT((s.model.principal_inertia[static_cast<std::size_t>(heavy)] - ratio * s.model.principal_inertia[light]).norm(),
-              1e-12 * ratio * s.model.principal_inertia[light].norm());
+    ASSERT_LT(
+        (s.model.principal_inertia[static_cast<std::size_t>(heavy)] - ratio * s.model.principal_inertia[light]).norm(),
+        1e-12 * ratio * s.model.principal_inertia[light].norm());
     st.cubes.push_back(heavy);
     st.start.push_back(position(s, heavy));
     s.options.solver.tolerance = 1e-10;
@@ -210,7 +212,8 @@ TEST(StabilityPolyhedra, HeavyCubeOnLightOnes) {
     double worst_balance = 0.0;
     for (long k = 0; k < 2000; ++k) {
       sweeps.add(s.advance());
-      if (k >= 10) worst_balance = std::max(worst_balance, std::abs(normal_impulse_on(s, st.floor) / (weight * h) - 1.0));
+      if (k >= 10)
+        worst_balance = std::max(worst_balance, std::abs(normal_impulse_on(s, st.floor) / (weight * h) - 1.0));
     }
     const double moved = largest_displacement(s, st.cubes, st.start);
     std::cout << "mass ratio " << ratio << ": drift / side " << moved / st.side << ", |floor impulse / (W h) - 1| max "
@@ -238,15 +241,17 @@ TEST(StabilityPolyhedra, OverlappingStackSeparatesWithoutEjection) {
     const double side = st.side;
     const double overlap = 0.25 * side;
     const int n = 5;
-    for (int k = 0; k < n; ++k) st.cubes.push_back(add_cube(s, side, Vec3(0, 0, side / 2 - overlap + k * (side - overlap))));
+    for (int k = 0; k < n; ++k)
+      st.cubes.push_back(add_cube(s, side, Vec3(0, 0, side / 2 - overlap + k * (side - overlap))));
     double max_speed = 0.0;
     for (int k = 0; k < 3000; ++k) {
       s.advance();
       max_speed = std::max(max_speed, max_grain_speed(s));
     }
     const double h = s.options.integrator.time_step;
-    std::cout << "overlap recovery, cap " << cap << " m/s: max speed " << max_speed << " m/s, final deepest overlap / side "
-              << deepest_overlap(s) / side << ", final max speed " << max_grain_speed(s) << " m/s\n";
+    std::cout << "overlap recovery, cap " << cap << " m/s: max speed " << max_speed
+              << " m/s, final deepest overlap / side " << deepest_overlap(s) / side << ", final max speed "
+              << max_grain_speed(s) << " m/s\n";
     EXPECT_LT(max_speed, g * h) << "cap " << cap;
     EXPECT_LT(max_grain_speed(s), 1e-6) << "cap " << cap;
     EXPECT_LT(deepest_overlap(s), 1e-3 * side) << "cap " << cap;
@@ -294,7 +299,8 @@ TEST(StabilityPolyhedra, CubeRightAtTheFrictionThreshold) {
   above.scene.run(0.5);
   const double expected = g * (std::sin(alpha) - mu * std::cos(alpha));
   const double a = above.scene.state.velocity[static_cast<std::size_t>(above.cubes[0])].dot(above.downhill) / 0.5;
-  std::cout << "incline: 0.97 mu displacement " << moved << " m, 1.03 mu a / reference - 1 = " << a / expected - 1 << "\n";
+  std::cout << "incline: 0.97 mu displacement " << moved << " m, 1.03 mu a / reference - 1 = " << a / expected - 1
+            << "\n";
   EXPECT_NEAR(a, expected, 0.01 * expected);
 }
 
@@ -352,7 +358,8 @@ double kinetic_energy(const TestScene& s) {
   for (std::size_t b = 0; b < s.model.body_count(); ++b) {
     if (s.model.is_fixed(b)) continue;
     const Vec3 w = s.state.orientation[b].toRotationMatrix().transpose() * s.state.angular_velocity[b];
-    e += 0.5 * s.model.mass[b] * s.state.velocity[b].squaredNorm() + 0.5 * w.dot(s.model.principal_inertia[b].cwiseProduct(w));
+    e += 0.5 * s.model.mass[b] * s.state.velocity[b].squaredNorm() +
+         0.5 * w.dot(s.model.principal_inertia[b].cwiseProduct(w));
   }
   return e;
 }
@@ -387,11 +394,11 @@ double deepest_grain_overlap(const TestScene& s) {
 // 0.7 mm/s (the solver stopped after one sweep and its error fed the rocking); at the default
 // 1e-4 the rocking decays (tests/stability/README.md).
 struct PileAtRest {
-  double pour_seconds = 0.0, pour_overlap = 0.0;  ///< s; deepest grain-grain overlap in the pour, m
-  int settle_steps = 0;                           ///< 1 ms steps until 200 steps in a row below 1e-6 m/s
-  bool settled = false;                           ///< the quiet spell came within 12 000 steps
+  double pour_seconds = 0.0, pour_overlap = 0.0;              ///< s; deepest grain-grain overlap in the pour, m
+  int settle_steps = 0;                                       ///< 1 ms steps until 200 steps in a row below 1e-6 m/s
+  bool settled = false;                                       ///< the quiet spell came within 12 000 steps
   double max_speed = 0.0, displacement = 0.0, overlap = 0.0;  ///< over the rest phase (m/s, m, m)
-  std::size_t recoveries = 0;                     ///< rest steps with an overlap recovery
+  std::size_t recoveries = 0;                                 ///< rest steps with an overlap recovery
   // One more step from the pile at rest, solved cold (no warm start) at the default tolerance and
   // at 1e-6 (SolverOptions::tolerance):
   std::size_t loaded_default = 0, loaded_tight = 0;  ///< pairs of bodies pressed together in each solve
@@ -500,8 +507,8 @@ PileAtRest pour_and_rest(int count, int max_settle_steps) {
             << kinetic_energy(s) << " J, sweeps per step max " << rest_sweeps.worst << ", mean " << rest_sweeps.mean()
             << ", steps with an overlap recovery " << pile.recoveries << "; cold solve at the default tolerance vs "
             << "1e-6: loaded " << pile.loaded_default << " vs " << pile.loaded_tight << " (" << pile.loaded_in_both
-            << " in both; impulse of the others " << pile.unmatched_impulse << "), net contact impulses rms " << pile.resultant_error << ", worst " << pile.worst_resultant_error
-            << "\n";
+            << " in both; impulse of the others " << pile.unmatched_impulse << "), net contact impulses rms "
+            << pile.resultant_error << ", worst " << pile.worst_resultant_error << "\n";
   return pile;
 }
 
@@ -509,14 +516,15 @@ PileAtRest pour_and_rest(int count, int max_settle_steps) {
 void expect_at_rest(const PileAtRest& pile) {
   const double d = 0.1;
   ASSERT_TRUE(pile.settled) << "the pile did not settle";
-  EXPECT_LT(pile.max_speed, 1e-6);      // no jitter: a micrometre per second at most
-  EXPECT_LT(pile.displacement, 1e-6);   // no creep over 10 s
+  EXPECT_LT(pile.max_speed, 1e-6);     // no jitter: a micrometre per second at most
+  EXPECT_LT(pile.displacement, 1e-6);  // no creep over 10 s
   EXPECT_LT(pile.overlap, 0.01 * d);
   // The default tolerance: the loaded contacts and the grains' net contact impulses of a 1e-6
   // solve within 1 %.
   // Pressed pairs: as many within 1 % (a pair or two may flip at a vanishing impulse), and those
   // pressed in one solve only carry less than 1e-3 of the impulse.
-  const double count_difference = std::abs(static_cast<double>(pile.loaded_default) - static_cast<double>(pile.loaded_tight));
+  const double count_difference =
+      std::abs(static_cast<double>(pile.loaded_default) - static_cast<double>(pile.loaded_tight));
   EXPECT_LE(count_difference, std::max(1.0, 0.01 * static_cast<double>(pile.loaded_tight)));
   EXPECT_LT(pile.unmatched_impulse, 1e-3);
   EXPECT_LT(pile.resultant_error, 0.01);

@@ -65,7 +65,8 @@ TEST(Stability, TwentySpheresInATubeStayAtRest) {
     total_iterations += c.scene.last_report.solver.iterations;
   }
   EXPECT_LT(column_drift(c), 1e-6 * c.radius);
-  std::cout << "20-sphere column: max sweeps per step " << worst_iterations << ", mean " << total_iterations / 10000.0 << "\n";
+  std::cout << "20-sphere column: max sweeps per step " << worst_iterations << ", mean " << total_iterations / 10000.0
+            << "\n";
 }
 
 // Expected failure mode: with a cap of 5 sweeps the same column cannot carry its weight in one
@@ -141,8 +142,8 @@ TEST(Stability, OverlapRecoveryWithoutEjection) {
   }
   double worst_gap = 0.0;
   for (const Contact& c : s.workspace.carry.contacts) worst_gap = std::min(worst_gap, c.gap);
-  EXPECT_GT(worst_gap, -0.01 * r);          // separated to within 1% of r
-  EXPECT_LT(max_speed, 1.0 + g * 0.5);      // the cap, plus gravity over the recovery
+  EXPECT_GT(worst_gap, -0.01 * r);      // separated to within 1% of r
+  EXPECT_LT(max_speed, 1.0 + g * 0.5);  // the cap, plus gravity over the recovery
 }
 
 // Expected failure mode: a large time step. The impact law uses the normal velocity at the start
