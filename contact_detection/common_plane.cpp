@@ -90,6 +90,7 @@ struct GjkResult {
 /// Closest point to the origin of the simplex s[0..count), reduced in place to the vertices
 /// that support it (Ericson 2005, "Real-Time Collision Detection", sec. 5.1.2-5.1.6).
 /// Returns false when the origin is inside a full tetrahedron.
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 bool reduce_simplex(std::array<SimplexVertex, 4>& s, int& count, Vec3& closest) {
   auto keep = [&](std::initializer_list<int> indices) {
     std::array<SimplexVertex, 4> kept;
@@ -274,6 +275,7 @@ double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, 
   return (min_b + normal.dot(b.position)) - (max_a + normal.dot(a.position));
 }
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, const Vec3* initial_normal,
                               double cutoff) {
   const ConvexPolyhedron& A = *pa.shape;

@@ -281,6 +281,7 @@ void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std
 /// one inside the other, crossings of their edges), and each point of the intersection gets
 /// its local gap from the two bodies' surfaces above and below it. Vertex-face gives 1 point,
 /// edge-edge 1, edge-face 2, face-face the clipped polygon, reduced to <= 4 points.
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, std::uint32_t body_a,
                               std::uint32_t body_b, const Vec3& normal_world, double gap, double alert_distance,
                               ContactList& contacts) {

@@ -64,11 +64,15 @@ struct ContactLawTable {
   }
   /// Sets the law of the pair (a, b) and (b, a).
   void set(int a, int b, const ContactLaw& law) {
-    laws[static_cast<std::size_t>(a * material_count + b)] = law;
-    laws[static_cast<std::size_t>(b * material_count + a)] = law;
+    laws[index(a, b)] = law;
+    laws[index(b, a)] = law;
   }
   /// The law between materials a and b.
-  const ContactLaw& get(int a, int b) const { return laws[static_cast<std::size_t>(a * material_count + b)]; }
+  const ContactLaw& get(int a, int b) const { return laws[index(a, b)]; }
+  /// Position of the pair (a, b) in `laws` (row-major).
+  std::size_t index(int a, int b) const {
+    return static_cast<std::size_t>(a) * static_cast<std::size_t>(material_count) + static_cast<std::size_t>(b);
+  }
   /// Whether any pair's law has cohesion (a scene without it pays nothing for it).
   bool any_cohesive() const {
     for (const ContactLaw& law : laws)

@@ -192,6 +192,7 @@ PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& ver
   return mass_properties(vertices, faces);
 }
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
                                         const PolyhedronBuildOptions& options, PolyhedronPose* pose) {
   if (vertices.size() < 4) fail("needs at least 4 vertices, got " + std::to_string(vertices.size()));
@@ -391,6 +392,7 @@ ConvexPolyhedron scaled_polyhedron(const ConvexPolyhedron& shape, double factor)
 ConvexPolyhedron make_box_polyhedron(const Vec3& half_extents) {
   const Vec3& h = half_extents;
   std::vector<Vec3> v;
+  v.reserve(8);
   for (int k = 0; k < 8; ++k) {
     v.emplace_back((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z());
   }

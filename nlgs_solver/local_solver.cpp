@@ -39,6 +39,7 @@ double misalignment(const SlidingCandidate& c, const Vec2& d) {
 
 }  // namespace
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
   LocalSolution solution;
   if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open

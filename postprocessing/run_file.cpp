@@ -79,6 +79,7 @@ void write_integers(Write write, hid_t parent, const std::string& name, const Va
   units(parent, name, "1", file);
 }
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 void write_model(hid_t file_id, const Model& model, const fs::path& file) {
   Handle group = hdf5::create_group(file_id, "model", file);
   const hid_t g = group.get();

@@ -127,6 +127,7 @@ double convex_hull_volume(const std::vector<Vec3>& points) {
   return CGAL::to_double(CGAL::Polygon_mesh_processing::volume(hull_mesh(points)));
 }
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 std::vector<std::vector<int>> merge_coplanar_faces(const std::vector<Vec3>& vertices,
                                                    const std::vector<std::vector<int>>& faces, double angle_degrees,
                                                    std::vector<int>& interior_vertices) {

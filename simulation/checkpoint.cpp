@@ -145,7 +145,7 @@ fs::path write_checkpoint(const fs::path& folder, const CheckpointView& checkpoi
   keep = std::max(keep, 1);
   fs::create_directories(folder);
   const std::string name = fmt::format("step-{:012}.ckpt", checkpoint.state.step);
-  const fs::path final_path = folder / name;
+  fs::path final_path = folder / name;
   const fs::path temporary = folder / (name + ".tmp");
   try {
     write_checkpoint_file(temporary, checkpoint);

@@ -12,6 +12,7 @@ namespace {
 constexpr double infinity = std::numeric_limits<double>::infinity();
 }  // namespace
 
+// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 SceneScales scene_scales(const Model& model, const State& state, const GravitySettings& gravity) {
   SceneScales scales;
   Vec3 weighted = Vec3::Zero();

@@ -20,7 +20,7 @@ void check_contact_law_coverage(const SceneDraft& draft) {
     if (!grain_material[static_cast<std::size_t>(a)]) continue;
     for (int b = 0; b < n; ++b) {
       if (!grain_material[static_cast<std::size_t>(b)] && !wall_material[static_cast<std::size_t>(b)]) continue;
-      if (draft.law_defined[static_cast<std::size_t>(a * n + b)]) continue;
+      if (draft.law_defined[draft.scene.model.contact_laws.index(a, b)]) continue;
       const std::string& name_a = materials[static_cast<std::size_t>(a)].name;
       const std::string& name_b = materials[static_cast<std::size_t>(b)].name;
       draft.root.fail(draft.root.get("contact_laws"), "contact_laws",

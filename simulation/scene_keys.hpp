@@ -59,6 +59,7 @@ const std::vector<SectionKey<ContactLaw>>& contact_law_keys();
 template <class Options>
 std::vector<std::string_view> key_names(const std::vector<SectionKey<Options>>& keys) {
   std::vector<std::string_view> names;
+  names.reserve(keys.size());
   for (const auto& key : keys) names.push_back(key.name);
   return names;
 }

@@ -83,19 +83,19 @@ void parse_contact_laws(SceneDraft& draft) {
     draft.default_law = parse_law(*fallback);
   }
   draft.scene.model.contact_laws.reset(n, draft.default_law.value_or(ContactLaw{}));
-  draft.law_defined.assign(static_cast<std::size_t>(n * n), false);
+  draft.law_defined.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), false);
   for (const TableReader& entry : draft.root.tables("contact_laws")) {
     std::vector<std::string_view> allowed = {"materials"};
     for (const std::string_view key : key_names(contact_law_keys())) allowed.push_back(key);
     entry.allow_only(allowed, "in [[contact_laws]]");
     const auto [a, b] = law_materials(draft, entry);
-    if (draft.law_defined[static_cast<std::size_t>(a * n + b)]) {
+    if (draft.law_defined[draft.scene.model.contact_laws.index(a, b)]) {
       entry.fail(entry.get("materials"), entry.key_path("materials"),
                  "the contact law of this pair is defined twice (expected one entry per pair)");
     }
     draft.scene.model.contact_laws.set(a, b, parse_law(entry));
-    draft.law_defined[static_cast<std::size_t>(a * n + b)] = true;
-    draft.law_defined[static_cast<std::size_t>(b * n + a)] = true;
+    draft.law_defined[draft.scene.model.contact_laws.index(a, b)] = true;
+    draft.law_defined[draft.scene.model.contact_laws.index(b, a)] = true;
   }
 }
 
