@@ -28,6 +28,27 @@ wait_for_owner() {
   done
   fail "run $pid never took the lock"
 }
+# The newest checkpoint's file name (empty if none).
+newest_checkpoint() { ls "$out/checkpoints/"step-*.ckpt 2> /dev/null | sort | tail -1; }
+# Waits until PID has written a checkpoint newer than $2: it is stepping, past the reopen of
+# run.h5 (a fixed sleep was not always enough on a loaded machine).
+wait_for_new_checkpoint() {
+  local pid=$1 before=$2
+  for _ in $(seq 1 6000); do
+    [ "$(newest_checkpoint)" != "$before" ] && return 0
+    kill -0 "$pid" 2> /dev/null || fail "run $pid ended before writing a new checkpoint"
+    sleep 0.01
+  done
+  fail "run $pid wrote no new checkpoint"
+}
+# Waits until the file $1 holds the text $2 (a message printed just after taking the lock).
+wait_for_text() {
+  for _ in $(seq 1 3000); do
+    grep -qF "$2" "$1" && return 0
+    sleep 0.01
+  done
+  return 1
+}
 # Every step once, 1..N, in run.h5's series, N = the newest checkpoint's step.
 check_run_file() {
   /usr/bin/python3 - "$out" << 'EOF' || fail "run.h5 is not intact"
@@ -68,17 +89,18 @@ check_run_file
 echo "one_run_per_folder: a second writer and a --resume were refused (exit 2, pid $first named); the first run's output is intact"
 
 # 2. A stale lock: the owner is SIGKILLed, its pid stays in the file.
+before=$(newest_checkpoint)
 "$rubble" run --resume "$out" --end-time 1000 --checkpoint-every 500 -q > "$work/killed.log" 2>&1 &
 killed=$!
 wait_for_owner "$killed"
-sleep 0.5  # past the reopen of run.h5, into the stepping
+wait_for_new_checkpoint "$killed" "$before"  # past the reopen of run.h5, into the stepping
 kill -KILL "$killed"
 wait "$killed"
 [ "$(cat "$out/rubble.lock")" = "$killed" ] || fail "the lock file does not hold the killed run's pid $killed"
 "$rubble" run --resume "$out" --end-time 1000 --checkpoint-every 500 > "$work/takeover.log" 2>&1 &
 takeover=$!
 wait_for_owner "$takeover"
-grep -qF "took over the stale lock of pid $killed" "$work/takeover.log" || fail "no note of the stale lock of pid $killed"
+wait_for_text "$work/takeover.log" "took over the stale lock of pid $killed" || fail "no note of the stale lock of pid $killed"
 kill -TERM "$takeover"
 wait "$takeover"
 code=$?
