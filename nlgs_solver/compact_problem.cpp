@@ -44,9 +44,7 @@ void gather_tangential_targets(const Model& model, const State& state, const Swe
     const std::size_t a = c.id.body_a, b = c.id.body_b;
     const double restitution = model.contact_laws.get(model.material[a], model.material[b]).tangential_restitution;
     if (restitution == 0.0) continue;
-    const Vec3 relative = state.velocity[b] + state.angular_velocity[b].cross(c.arm_b) - state.velocity[a] -
-                          state.angular_velocity[a].cross(c.arm_a);
-    const Vec3 before = c.frame.transpose() * relative;
+    const Vec3 before = c.frame.transpose() * contact_relative_velocity(c, state.velocity, state.angular_velocity);
     out.tangential_target[p] = -restitution * Vec2(before.y(), before.z());
   }
 }

@@ -107,10 +107,8 @@ void prepare_contacts(const Model& model, const State& state, const BodyVelociti
     c.friction_coefficient = law.friction_coefficient;
     c.normal_restitution = law.normal_restitution;
     const Vec3 normal = c.frame.col(0);
-    c.normal_velocity_before = normal.dot(state.velocity[b] + state.angular_velocity[b].cross(c.arm_b) -
-                                          state.velocity[a] - state.angular_velocity[a].cross(c.arm_a));
-    const double free_normal = normal.dot(free_velocity.linear[b] + free_velocity.angular[b].cross(c.arm_b) -
-                                          free_velocity.linear[a] - free_velocity.angular[a].cross(c.arm_a));
+    c.normal_velocity_before = normal.dot(contact_relative_velocity(c, state.velocity, state.angular_velocity));
+    const double free_normal = normal.dot(contact_relative_velocity(c, free_velocity.linear, free_velocity.angular));
     c.normal_velocity_target = normal_velocity_target(c, free_normal, integrator);
     c.cohesive_impulse = cohesive_impulse.empty() ? 0.0 : cohesive_impulse[static_cast<std::size_t>(i)];
     if (!options.warm_start) c.impulse = Vec3::Zero();

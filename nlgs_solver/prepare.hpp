@@ -4,7 +4,9 @@
 // declared with the rest of the solver's interface in nlgs.hpp; this header holds what the
 // preparation shares with the other parts of the solver.
 #include <cstddef>
+#include <vector>
 
+#include "contact_detection/contact.hpp"
 #include "core/model.hpp"
 
 namespace rubble {
@@ -14,5 +16,14 @@ namespace rubble {
 /// pull-off force (prepare.cpp) and the rolling and twisting bounds (compact_problem.cpp) scale
 /// with, so that both use one definition.
 double reduced_radius(const Model& model, std::size_t a, std::size_t b);
+
+/// Velocity of body b's material point at contact c relative to body a's, world frame, for the
+/// bodies' velocities `linear` and `angular`: v_b + w_b x arm_b - v_a - w_a x arm_a. The state's
+/// velocities give the pre-impact velocity of the restitution laws, the free ones the prediction.
+inline Vec3 contact_relative_velocity(const Contact& c, const std::vector<Vec3>& linear,
+                                      const std::vector<Vec3>& angular) {
+  const std::size_t a = c.id.body_a, b = c.id.body_b;
+  return linear[b] + angular[b].cross(c.arm_b) - linear[a] - angular[a].cross(c.arm_a);
+}
 
 }  // namespace rubble

@@ -175,20 +175,11 @@ void write_model(hid_t file_id, const Model& model, const fs::path& file) {
     units(laws.get(), "friction", "1", file);
     hdf5::write_doubles(laws.get(), "restitution", restitution, dims, file, storage);
     units(laws.get(), "restitution", "1", file);
-    // The other parameters of the law, so that a state exported from the file (rubble export)
-    // keeps the contact laws it ran with.
-    const std::array<std::pair<const char*, double ContactLaw::*>, 5> others{
-        {{"tangential_restitution", &ContactLaw::tangential_restitution},
-         {"cohesion", &ContactLaw::cohesion},
-         {"work_of_adhesion", &ContactLaw::work_of_adhesion},
-         {"rolling_friction", &ContactLaw::rolling_friction},
-         {"twisting_friction", &ContactLaw::twisting_friction}}};
-    const std::array<const char*, 5> other_units{"1", "N", "J/m^2", "1", "1"};
-    for (std::size_t k = 0; k < others.size(); ++k) {
+    for (const ContactLawField& field : optional_contact_law_fields) {
       std::vector<double> values(m * m);
-      for (std::size_t i = 0; i < m * m; ++i) values[i] = model.contact_laws.laws[i].*others[k].second;
-      hdf5::write_doubles(laws.get(), others[k].first, values, dims, file, storage);
-      units(laws.get(), others[k].first, other_units[k], file);
+      for (std::size_t i = 0; i < m * m; ++i) values[i] = model.contact_laws.laws[i].*field.member;
+      hdf5::write_doubles(laws.get(), field.name, values, dims, file, storage);
+      units(laws.get(), field.name, field.units, file);
     }
   }
 }

@@ -2,6 +2,7 @@
 // The HDF5 run file: what a run writes (the model, the scene text, one row of the per-step series
 // per step, state + contact snapshots) and what post-processing reads back. The layout is
 // documented in docs/output-format.md; that document and run_file.cpp must stay in step.
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -15,6 +16,24 @@
 #include "core/state.hpp"
 
 namespace rubble {
+
+/// A contact-law parameter stored in /model/contact_laws as an (M, M) dataset, besides friction
+/// and restitution (always there): the dataset, the ContactLaw member it holds, its units.
+struct ContactLawField {
+  const char* name;            ///< dataset name
+  double ContactLaw::*member;  ///< the parameter
+  const char* units;           ///< units attribute
+};
+
+/// Those parameters, written by RunFile and read back by RunReader (files written before
+/// 2026-11-24 lack them: read as 0), so that a state exported from the file (rubble export) keeps
+/// the contact laws it ran with.
+inline constexpr std::array<ContactLawField, 5> optional_contact_law_fields{
+    {{"tangential_restitution", &ContactLaw::tangential_restitution, "1"},
+     {"cohesion", &ContactLaw::cohesion, "N"},
+     {"work_of_adhesion", &ContactLaw::work_of_adhesion, "J/m^2"},
+     {"rolling_friction", &ContactLaw::rolling_friction, "1"},
+     {"twisting_friction", &ContactLaw::twisting_friction, "1"}}};
 
 /// Identifies the layout in the file's root attributes; bump format_version on any change.
 inline constexpr std::string_view run_file_format = "rubble-run";

@@ -1,8 +1,6 @@
 #include "postprocessing/run_reader.hpp"
 
 #include <algorithm>
-#include <array>
-#include <utility>
 #include <cstdio>
 #include <set>
 #include <stdexcept>
@@ -97,18 +95,11 @@ Model read_model(hid_t root, const fs::path& file) {
     for (std::size_t k = 0; k < count * count; ++k) {
       model.contact_laws.laws[k] = ContactLaw{friction.values[k], restitution.values[k]};
     }
-    // Files written before these were stored (issue 20) hold friction and restitution only.
-    const std::array<std::pair<const char*, double ContactLaw::*>, 5> others{
-        {{"tangential_restitution", &ContactLaw::tangential_restitution},
-         {"cohesion", &ContactLaw::cohesion},
-         {"work_of_adhesion", &ContactLaw::work_of_adhesion},
-         {"rolling_friction", &ContactLaw::rolling_friction},
-         {"twisting_friction", &ContactLaw::twisting_friction}}};
-    for (const auto& [name, member] : others) {
-      if (!hdf5::exists(laws.get(), name)) continue;
-      const hdf5::Array<double> values = hdf5::read_doubles(laws.get(), name, file);
-      expect_shape(values, count, count, std::string("contact_laws/") + name, file);
-      for (std::size_t k = 0; k < count * count; ++k) model.contact_laws.laws[k].*member = values.values[k];
+    for (const ContactLawField& field : optional_contact_law_fields) {
+      if (!hdf5::exists(laws.get(), field.name)) continue;  // a file written before they were stored
+      const hdf5::Array<double> values = hdf5::read_doubles(laws.get(), field.name, file);
+      expect_shape(values, count, count, std::string("contact_laws/") + field.name, file);
+      for (std::size_t k = 0; k < count * count; ++k) model.contact_laws.laws[k].*field.member = values.values[k];
     }
   }
 
