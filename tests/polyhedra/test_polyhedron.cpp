@@ -45,8 +45,11 @@ Mesh moved(Mesh m, const Vec3& shift, const Quat& rotation) {
   return m;
 }
 
-void expect_relative(double value, double reference, double tolerance = 1e-12) {
-  EXPECT_NEAR(value, reference, tolerance * std::abs(reference)) << "value " << value << " reference " << reference;
+/// Whether `value` is within a relative `tolerance` of `reference` (for EXPECT_TRUE).
+::testing::AssertionResult near_relative(double value, double reference, double tolerance = 1e-12) {
+  if (std::abs(value - reference) <= tolerance * std::abs(reference)) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "value " << value << " reference " << reference << " (relative tolerance "
+                                       << tolerance << ")";
 }
 
 // Reference: V = a^3, I = V a^2 / 6 (per unit density) about any axis through the centre.
@@ -54,7 +57,7 @@ TEST(PolyhedronMass, CubeMatchesClosedForm) {
   const double a = 0.7;
   const Mesh m = moved(box_mesh(a, a, a), Vec3(3, -2, 5), Quat(Eigen::AngleAxisd(0.3, Vec3(1, 2, 3).normalized())));
   const PolyhedronMassProperties p = polyhedron_mass_properties(m.vertices, m.faces);
-  expect_relative(p.volume, a * a * a);
+  EXPECT_TRUE(near_relative(p.volume, a * a * a));
   EXPECT_NEAR((p.centroid - Vec3(3, -2, 5)).norm(), 0.0, 1e-12 * 5);
   const double inertia = a * a * a * a * a / 6.0;
   EXPECT_NEAR((p.inertia_per_density - inertia * Mat3::Identity()).norm(), 0.0, 1e-12 * inertia);
@@ -67,10 +70,10 @@ TEST(PolyhedronMass, BoxMatchesClosedForm) {
   const Mesh m = moved(box_mesh(a, b, c), Vec3(-1, 4, 2), rotation);
   const ConvexPolyhedron shape = make_convex_polyhedron(m.vertices, m.faces);
   const double volume = a * b * c;
-  expect_relative(shape.volume, volume);
+  EXPECT_TRUE(near_relative(shape.volume, volume));
   // Principal axes come out sorted by increasing moment: x (long) first.
   const Vec3 expected(volume * (b * b + c * c) / 12, volume * (a * a + c * c) / 12, volume * (a * a + b * b) / 12);
-  for (int k = 0; k < 3; ++k) expect_relative(shape.principal_inertia_per_density[k], expected[k]);
+  for (int k = 0; k < 3; ++k) EXPECT_TRUE(near_relative(shape.principal_inertia_per_density[k], expected[k]));
 }
 
 // Reference: V = a^3 / (6 sqrt 2), I = V a^2 / 20 about any axis through the centre.
@@ -79,7 +82,7 @@ TEST(PolyhedronMass, RegularTetrahedronMatchesClosedForm) {
   const Mesh m = moved(tetrahedron_mesh(a), Vec3(0.1, 0.2, 0.3), Quat(Eigen::AngleAxisd(0.8, Vec3::UnitY())));
   const PolyhedronMassProperties p = polyhedron_mass_properties(m.vertices, m.faces);
   const double volume = a * a * a / (6.0 * std::sqrt(2.0));
-  expect_relative(p.volume, volume);
+  EXPECT_TRUE(near_relative(p.volume, volume));
   EXPECT_NEAR((p.inertia_per_density - volume * a * a / 20.0 * Mat3::Identity()).norm(), 0.0, 1e-12 * volume * a * a);
 }
 
@@ -89,7 +92,7 @@ TEST(PolyhedronMass, RegularOctahedronMatchesClosedForm) {
   const Mesh m = moved(octahedron_mesh(a), Vec3(7, 7, -7), Quat(Eigen::AngleAxisd(2.0, Vec3(1, 1, 0).normalized())));
   const PolyhedronMassProperties p = polyhedron_mass_properties(m.vertices, m.faces);
   const double volume = std::sqrt(2.0) / 3.0 * a * a * a;
-  expect_relative(p.volume, volume);
+  EXPECT_TRUE(near_relative(p.volume, volume));
   EXPECT_NEAR((p.inertia_per_density - volume * a * a / 10.0 * Mat3::Identity()).norm(), 0.0, 1e-12 * volume * a * a);
 }
 
@@ -150,14 +153,14 @@ TEST(PolyhedronBuild, ScalingScalesVolumeAndInertia) {
   const Mesh m = tetrahedron_mesh(1.0);
   const ConvexPolyhedron shape = make_convex_polyhedron(m.vertices, m.faces);
   const ConvexPolyhedron twice = scaled_polyhedron(shape, 2.0);
-  expect_relative(twice.volume, 8.0 * shape.volume);
-  expect_relative(twice.principal_inertia_per_density.x(), 32.0 * shape.principal_inertia_per_density.x());
-  expect_relative(twice.bounding_radius, 2.0 * shape.bounding_radius);
+  EXPECT_TRUE(near_relative(twice.volume, 8.0 * shape.volume));
+  EXPECT_TRUE(near_relative(twice.principal_inertia_per_density.x(), 32.0 * shape.principal_inertia_per_density.x()));
+  EXPECT_TRUE(near_relative(twice.bounding_radius, 2.0 * shape.bounding_radius));
 }
 
 TEST(PolyhedronBuild, BoxPolyhedronHasTheBoxVolume) {
   const ConvexPolyhedron box = make_box_polyhedron(Vec3(1, 2, 3));
-  expect_relative(box.volume, 48.0);
+  EXPECT_TRUE(near_relative(box.volume, 48.0));
   EXPECT_EQ(box.faces.size(), 6u);
 }
 
@@ -166,8 +169,8 @@ TEST(PolyhedronBuild, AddPolyhedronGrainUsesTheShapeMass) {
   model.materials.push_back({"rock", 2000.0});
   const Mesh m = box_mesh(1, 1, 1);
   const int id = add_polyhedron_grain(model, make_convex_polyhedron(m.vertices, m.faces), 0);
-  expect_relative(model.mass[static_cast<std::size_t>(id)], 2000.0);
-  expect_relative(model.principal_inertia[static_cast<std::size_t>(id)].x(), 2000.0 / 6.0);
+  EXPECT_TRUE(near_relative(model.mass[static_cast<std::size_t>(id)], 2000.0));
+  EXPECT_TRUE(near_relative(model.principal_inertia[static_cast<std::size_t>(id)].x(), 2000.0 / 6.0));
 }
 
 // --- bad meshes: a clear error, never a crash ---
