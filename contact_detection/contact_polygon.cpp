@@ -1,0 +1,163 @@
+#include "contact_detection/contact_polygon.hpp"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <utility>
+
+namespace rubble::contact_polygon {
+
+Polygon hull_2d(Polygon points, double tolerance) {
+  std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
+    return a.p.x() < b.p.x() ||
+           (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
+  });
+  // Merge coincident points (keep the lowest vertex id for determinism).
+  Polygon unique;
+  for (const CapVertex& c : points) {
+    bool found = false;
+    for (CapVertex& u : unique) {
+      if ((u.p - c.p).norm() <= tolerance) {
+        found = true;
+        u.vertex = std::min(u.vertex, c.vertex);
+        break;
+      }
+    }
+    if (!found) unique.push_back(c);
+  }
+  if (unique.size() <= 2) return unique;
+  Polygon hull(2 * unique.size());
+  std::size_t k = 0;
+  auto turn = [&](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
+    const Vec2 oa = a.p - o.p;
+    const Vec2 ob = b.p - o.p;
+    // Left turn by more than the tolerance (distance of b from the line o-a).
+    return cross2(oa, ob) > tolerance * oa.norm();
+  };
+  for (const CapVertex& c : unique) {
+    while (k >= 2 && !turn(hull[k - 2], hull[k - 1], c)) --k;
+    hull[k++] = c;
+  }
+  for (std::size_t i = unique.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && !turn(hull[k - 2], hull[k - 1], unique[i])) --k;
+    hull[k++] = unique[i];
+  }
+  hull.resize(k - 1);
+  if (hull.size() < 2) hull.assign(1, unique.front());
+  return hull;
+}
+
+Vec2 closest_on_boundary(const Polygon& polygon, const Vec2& q, std::size_t vertex_count, std::uint32_t& feature) {
+  Vec2 best_point = polygon[0].p;
+  double best_distance = (q - best_point).squaredNorm();
+  feature = vertex_code(polygon[0].vertex);
+  const std::size_t edges = polygon.size() < 2 ? 0 : (polygon.size() == 2 ? 1 : polygon.size());
+  for (std::size_t i = 0; i < edges; ++i) {
+    const CapVertex& p0 = polygon[i];
+    const CapVertex& p1 = polygon[(i + 1) % polygon.size()];
+    const Vec2 e = p1.p - p0.p;
+    const double t = std::clamp((q - p0.p).dot(e) / e.squaredNorm(), 0.0, 1.0);
+    const Vec2 c = p0.p + t * e;
+    const double d = (q - c).squaredNorm();
+    if (d < best_distance) {
+      best_distance = d;
+      best_point = c;
+      feature = t == 0.0   ? vertex_code(p0.vertex)
+                : t == 1.0 ? vertex_code(p1.vertex)
+                           : edge_code(p0.vertex, p1.vertex, vertex_count);
+    }
+  }
+  return best_point;
+}
+
+Vec2 clamp_into(const Polygon& polygon, const Vec2& q) {
+  if (polygon.size() >= 3 && inside(polygon, q, 0.0)) return q;
+  std::uint32_t feature = 0;
+  return closest_on_boundary(polygon, q, 0, feature);
+}
+
+double polygon_area(Polygon points) {
+  const Polygon hull = hull_2d(std::move(points), 0.0);
+  double area = 0.0;
+  for (std::size_t i = 0; i < hull.size() && hull.size() >= 3; ++i) {
+    area += cross2(hull[i].p, hull[(i + 1) % hull.size()].p);
+  }
+  return 0.5 * std::abs(area);
+}
+
+std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double area_tolerance) {
+  if (all.size() <= 4) return all;
+  std::size_t i1 = 0;
+  for (std::size_t i = 1; i < all.size(); ++i) {
+    if (all[i].gap < all[i1].gap) i1 = i;
+  }
+  std::size_t i2 = i1;
+  double far = -1.0;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const double d = (all[i].p - all[i1].p).squaredNorm();
+    if (d > far) {
+      far = d;
+      i2 = i;
+    }
+  }
+  std::size_t i3 = i1;
+  double area3 = -1.0;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const double a = std::abs(cross2(all[i2].p - all[i1].p, all[i].p - all[i1].p));
+    if (a > area3) {
+      area3 = a;
+      i3 = i;
+    }
+  }
+  std::vector<Candidate> kept{all[i1], all[i2]};
+  if (area3 <= area_tolerance) return kept;  // all collinear: a segment
+  kept.push_back(all[i3]);
+  const double triangle = 0.5 * area3;
+  std::size_t i4 = all.size();
+  double best_gain = area_tolerance;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (i == i1 || i == i2 || i == i3) continue;
+    const double gain = polygon_area({{all[i1].p, 0}, {all[i2].p, 1}, {all[i3].p, 2}, {all[i].p, 3}}) - triangle;
+    if (gain > best_gain) {
+      best_gain = gain;
+      i4 = i;
+    }
+  }
+  if (i4 < all.size()) kept.push_back(all[i4]);
+  return kept;
+}
+
+std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate> kept,
+                                            double tolerance, std::size_t max_points) {
+  if (kept.size() == all.size() || kept.size() >= max_points) return kept;
+  // Affine fit gap ~ c0 + c1 x + c2 y by least squares over the kept points (a line or a
+  // constant when they are collinear or alone).
+  const Vec2 origin = kept[0].p;
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Vec3 right = Vec3::Zero();
+  for (const Candidate& c : kept) {
+    const Vec3 row(1.0, c.p.x() - origin.x(), c.p.y() - origin.y());
+    normal_matrix += row * row.transpose();
+    right += row * c.gap;
+  }
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix3d> solver(normal_matrix);
+  const Vec3 fit = solver.solve(right);
+  std::vector<std::pair<double, std::size_t>> deficits;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    bool is_kept = false;
+    for (const Candidate& c : kept) is_kept = is_kept || (c.p - all[i].p).squaredNorm() == 0.0;
+    if (is_kept) continue;
+    const double predicted = fit.dot(Vec3(1.0, all[i].p.x() - origin.x(), all[i].p.y() - origin.y()));
+    const double deficit = predicted - all[i].gap;
+    if (deficit > tolerance) deficits.emplace_back(deficit, i);
+  }
+  std::sort(deficits.begin(), deficits.end(), [](const auto& x, const auto& y) {
+    return x.first > y.first || (x.first == y.first && x.second < y.second);
+  });
+  for (const auto& [deficit, i] : deficits) {
+    if (kept.size() >= max_points) break;
+    kept.push_back(all[i]);
+  }
+  return kept;
+}
+
+}  // namespace rubble::contact_polygon
