@@ -275,158 +275,181 @@ double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, 
   return (min_b + normal.dot(b.position)) - (max_a + normal.dot(a.position));
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
+namespace {
+
+/// B moved into A's body frame, where the search runs (A's data is used as stored).
+struct PairInFrameOfA {
+  const ConvexPolyhedron* A = nullptr;
+  const ConvexPolyhedron* B = nullptr;
+  Mat3 rotation;         ///< B body -> A body
+  Vec3 translation;      ///< m, B's centroid in A's frame
+  std::vector<Vec3> vb;  ///< m, B's vertices in A's frame
+  std::vector<Vec3> nb;  ///< B's face normals in A's frame
+};
+
+/// The best plane found so far: f(normal) = value, and which candidate gave it.
+struct BestPlane {
+  double value = 0.0;                                        ///< m
+  Vec3 normal;                                               ///< A's frame
+  CommonPlaneSource source = CommonPlaneSource::warm_start;  ///< the candidate
+};
+
+/// f(n) = min_B n.y - max_A n.x, for n in A's frame.
+double separation(const PairInFrameOfA& q, const Vec3& n) { return min_dot(q.vb, n) - max_dot(q.A->vertices, n); }
+
+/// The face normals of A and (negated) of B as candidates. A face is skipped when a cheap bound
+/// (the other body's centroid lies inside it) cannot beat the best value.
+void search_face_normals(const PairInFrameOfA& q, BestPlane& best) {
+  const ConvexPolyhedron& A = *q.A;
+  const ConvexPolyhedron& B = *q.B;
+  // Faces of A: f(n_f) = min_B n_f.y - d_f <= n_f.c_B - d_f since B's centroid is inside B.
+  for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
+    const Vec3& n = A.face_normals[f];
+    if (n.dot(q.translation) - A.face_offsets[f] <= best.value) continue;
+    const double value = min_dot(q.vb, n) - A.face_offsets[f];
+    if (value > best.value) best = {value, n, CommonPlaneSource::face_a};
+  }
+  // Faces of B, normal -m: f = min_A m.x - (d_f + m.c_B) <= -(d_f + m.c_B) (A's centroid is 0).
+  for (std::size_t f = 0; f < q.nb.size(); ++f) {
+    const Vec3& m = q.nb[f];
+    const double offset = B.face_offsets[f] + m.dot(q.translation);
+    if (-offset <= best.value) continue;
+    const double value = min_dot(A.vertices, m) - offset;
+    if (value > best.value) best = {value, -m, CommonPlaneSource::face_b};
+  }
+}
+
+/// Indices of the edges of A and of B that meet the other body's bounding box inflated by
+/// `reach`: an edge pair whose value s beats the best has crossing points x_A and x_B = x_A + s n
+/// with |s| < reach, so both edges pass within reach of the other body.
+std::pair<std::vector<int>, std::vector<int>> edges_within_reach(const PairInFrameOfA& q, double reach) {
+  const ConvexPolyhedron& A = *q.A;
+  const ConvexPolyhedron& B = *q.B;
+  const Vec3 lower_b = B.box_min - Vec3::Constant(reach), upper_b = B.box_max + Vec3::Constant(reach);
+  const Vec3 lower_a = A.box_min - Vec3::Constant(reach), upper_a = A.box_max + Vec3::Constant(reach);
+  std::vector<int> edges_a, edges_b;
+  for (std::size_t e = 0; e < A.edges.size(); ++e) {
+    const auto [i, j] = A.edges[e];
+    const Vec3 p = q.rotation.transpose() * (A.vertices[static_cast<std::size_t>(i)] - q.translation);
+    const Vec3 r = q.rotation.transpose() * (A.vertices[static_cast<std::size_t>(j)] - q.translation);
+    if (segment_meets_box(p, r, lower_b, upper_b)) edges_a.push_back(static_cast<int>(e));
+  }
+  for (std::size_t e = 0; e < B.edges.size(); ++e) {
+    const auto [i, j] = B.edges[e];
+    if (segment_meets_box(q.vb[static_cast<std::size_t>(i)], q.vb[static_cast<std::size_t>(j)], lower_a, upper_a)) {
+      edges_b.push_back(static_cast<int>(e));
+    }
+  }
+  return {std::move(edges_a), std::move(edges_b)};
+}
+
+/// The cross products of an edge of A and an edge of B that form a face of the Minkowski
+/// difference (their arcs cross on the Gauss map, Gregorius 2013) as candidates.
+void search_edge_pairs(const PairInFrameOfA& q, double touching, double size, BestPlane& best) {
+  const ConvexPolyhedron& A = *q.A;
+  const ConvexPolyhedron& B = *q.B;
+  const auto [edges_a, edges_b] = edges_within_reach(q, std::max(-best.value, touching) + 1e-12 * size);
+  // The arcs of B's edges on the Gauss map of -B (the Minkowski difference is A + (-B)).
+  std::vector<std::array<Vec3, 3>> arcs_b(edges_b.size());
+  for (std::size_t k = 0; k < edges_b.size(); ++k) {
+    const auto [left, right] = B.edge_faces[static_cast<std::size_t>(edges_b[k])];
+    const Vec3 c1 = -q.nb[static_cast<std::size_t>(left)];
+    const Vec3 c2 = -q.nb[static_cast<std::size_t>(right)];
+    arcs_b[k] = {c1, c2, c2.cross(c1)};
+  }
+  for (int ea : edges_a) {
+    const auto [ia, ja] = A.edges[static_cast<std::size_t>(ea)];
+    const auto [left_a, right_a] = A.edge_faces[static_cast<std::size_t>(ea)];
+    const Vec3& a1 = A.face_normals[static_cast<std::size_t>(left_a)];
+    const Vec3& a2 = A.face_normals[static_cast<std::size_t>(right_a)];
+    const Vec3 a2_x_a1 = a2.cross(a1);
+    const Vec3& pa0 = A.vertices[static_cast<std::size_t>(ia)];
+    const Vec3 edge_a = A.vertices[static_cast<std::size_t>(ja)] - pa0;
+    for (std::size_t k = 0; k < edges_b.size(); ++k) {
+      const auto& arc = arcs_b[k];
+      if (!arcs_cross(a1, a2, a2_x_a1, arc[0], arc[1], arc[2])) continue;
+      const auto [ib, jb] = B.edges[static_cast<std::size_t>(edges_b[k])];
+      const Vec3& pb0 = q.vb[static_cast<std::size_t>(ib)];
+      const Vec3 edge_b = q.vb[static_cast<std::size_t>(jb)] - pb0;
+      Vec3 n = edge_a.cross(edge_b);
+      const double length2 = n.squaredNorm();
+      if (length2 <= 1e-20 * edge_a.squaredNorm() * edge_b.squaredNorm()) continue;  // parallel: a face case
+      n /= std::sqrt(length2);
+      if (n.dot(a1 + a2) < 0.0) n = -n;  // outward from A at edge A
+      // Exact for a polytope (the edges are the supports); confirmed with the full supports so
+      // slightly non-planar merged faces can never report more separation than there is.
+      if (n.dot(pb0 - pa0) <= best.value) continue;
+      const double value = separation(q, n);
+      if (value > best.value) best = {value, n, CommonPlaneSource::edge_edge};
+    }
+  }
+}
+
+/// The warm-start normal in A's frame: last step's plane, else the line of centres.
+Vec3 initial_normal_in_a(const PolyhedronInWorld& pa, const Vec3* initial_normal, const Vec3& translation) {
+  if (initial_normal != nullptr && initial_normal->allFinite() && initial_normal->squaredNorm() > 0.0) {
+    return (pa.rotation.transpose() * *initial_normal).normalized();
+  }
+  if (translation.squaredNorm() > 0.0) return translation.normalized();
+  return Vec3::UnitZ();
+}
+
+}  // namespace
+
 CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, const Vec3* initial_normal,
                               double cutoff) {
+  PairInFrameOfA q;
+  q.A = pa.shape;
+  q.B = pb.shape;
   const ConvexPolyhedron& A = *pa.shape;
   const ConvexPolyhedron& B = *pb.shape;
   // Everything is done in A's body frame: A's data is used as stored, B is moved into it.
-  const Mat3 rotation = pa.rotation.transpose() * pb.rotation;                     // B body -> A body
-  const Vec3 translation = pa.rotation.transpose() * (pb.position - pa.position);  // B centroid in A
+  q.rotation = pa.rotation.transpose() * pb.rotation;
+  q.translation = pa.rotation.transpose() * (pb.position - pa.position);
   const double size = std::min(A.bounding_radius, B.bounding_radius);
   CommonPlane result;
-  auto to_world = [&](const Vec3& n) -> Vec3 { return pa.rotation * n; };
 
-  // --- 1. the warm-start normal ---
-  Vec3 n0;
-  if (initial_normal != nullptr && initial_normal->allFinite() && initial_normal->squaredNorm() > 0.0) {
-    n0 = (pa.rotation.transpose() * *initial_normal).normalized();
-  } else if (translation.squaredNorm() > 0.0) {
-    n0 = translation.normalized();
-  } else {
-    n0 = Vec3::UnitZ();
-  }
-  // f(n0) with B's support taken in B's own frame: no need to move B yet.
-  const double f0 = min_dot(B.vertices, rotation.transpose() * n0) + n0.dot(translation) - max_dot(A.vertices, n0);
+  // --- 1. the warm-start normal; f(n0) with B's support taken in B's own frame: no need to move B yet ---
+  const Vec3 n0 = initial_normal_in_a(pa, initial_normal, q.translation);
+  const double f0 = min_dot(B.vertices, q.rotation.transpose() * n0) + n0.dot(q.translation) - max_dot(A.vertices, n0);
   if (f0 >= cutoff) {
-    result.normal = to_world(n0);
+    result.normal = pa.rotation * n0;
     result.gap = f0;
     result.complete = false;
     return result;
   }
-
-  // --- 2. separating-axis search ---
-  std::vector<Vec3> vb(B.vertices.size());
-  for (std::size_t i = 0; i < vb.size(); ++i) vb[i] = rotation * B.vertices[i] + translation;
-  std::vector<Vec3> nb(B.face_normals.size());
-  for (std::size_t f = 0; f < nb.size(); ++f) nb[f] = rotation * B.face_normals[f];
-  auto separation = [&](const Vec3& n) { return min_dot(vb, n) - max_dot(A.vertices, n); };
-
-  double best = f0;
-  Vec3 best_normal = n0;
-  CommonPlaneSource best_source = CommonPlaneSource::warm_start;
+  q.vb.resize(B.vertices.size());
+  for (std::size_t i = 0; i < q.vb.size(); ++i) q.vb[i] = q.rotation * B.vertices[i] + q.translation;
+  q.nb.resize(B.face_normals.size());
+  for (std::size_t f = 0; f < q.nb.size(); ++f) q.nb[f] = q.rotation * B.face_normals[f];
+  BestPlane best{f0, n0, CommonPlaneSource::warm_start};
 
   // --- 2. apart? GJK gives the exact distance and closest-points direction ---
-  const GjkResult gjk = gjk_distance(A.vertices, vb, n0, size);
+  const GjkResult gjk = gjk_distance(A.vertices, q.vb, n0, size);
   // Below this distance GJK's closest-points direction is round-off (flush faces a hair apart
   // give a normal tilted by 1e-5 and a gap off by 1e-5 of the size): touching bodies go through
   // the separating-axis search as well, which finds the face normal exactly.
   const double touching = 1e-6 * size;
   if (gjk.separated) {
     const Vec3 n = gjk.closest.normalized();
-    const double value = separation(n);
-    if (value >= best) {
-      best = value;
-      best_normal = n;
-      best_source = CommonPlaneSource::closest_points;
-    }
+    const double value = separation(q, n);
+    if (value >= best.value) best = {value, n, CommonPlaneSource::closest_points};
   }
   if (!gjk.separated || gjk.closest.norm() < touching) {
     // --- 3. overlapping (or touching): separating-axis search for the least penetration ---
-    // Every candidate value is <= touching here, so a candidate s that beats `best` has
+    // Every candidate value is <= touching here, so a candidate s that beats the best has
     // |s| < max(-best, touching).
-    if (!gjk.separated) best = std::min(best, 0.0);
-
-    // Faces of A: f(n_f) = min_B n_f.y - d_f <= n_f.c_B - d_f since B's centroid is inside B.
-    for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
-      const Vec3& n = A.face_normals[f];
-      if (n.dot(translation) - A.face_offsets[f] <= best) continue;
-      const double value = min_dot(vb, n) - A.face_offsets[f];
-      if (value > best) {
-        best = value;
-        best_normal = n;
-        best_source = CommonPlaneSource::face_a;
-      }
-    }
-    // Faces of B, normal -m: f = min_A m.x - (d_f + m.c_B) <= -(d_f + m.c_B) (A's centroid is 0).
-    for (std::size_t f = 0; f < nb.size(); ++f) {
-      const Vec3& m = nb[f];
-      const double offset = B.face_offsets[f] + m.dot(translation);
-      if (-offset <= best) continue;
-      const double value = min_dot(A.vertices, m) - offset;
-      if (value > best) {
-        best = value;
-        best_normal = -m;
-        best_source = CommonPlaneSource::face_b;
-      }
-    }
-    // Edge pairs. A pair whose value s beats `best` has crossing points x_A and x_B = x_A + s n
-    // with |s| < -best, so edge A passes within -best of B and edge B within -best of A: edges
-    // that miss the other body's bounding box inflated by -best are skipped.
-    const double reach = std::max(-best, touching) + 1e-12 * size;
-    const Vec3 lower_b = B.box_min - Vec3::Constant(reach), upper_b = B.box_max + Vec3::Constant(reach);
-    const Vec3 lower_a = A.box_min - Vec3::Constant(reach), upper_a = A.box_max + Vec3::Constant(reach);
-    std::vector<int> edges_a, edges_b;
-    for (std::size_t e = 0; e < A.edges.size(); ++e) {
-      const auto [i, j] = A.edges[e];
-      const Vec3 p = rotation.transpose() * (A.vertices[static_cast<std::size_t>(i)] - translation);
-      const Vec3 q = rotation.transpose() * (A.vertices[static_cast<std::size_t>(j)] - translation);
-      if (segment_meets_box(p, q, lower_b, upper_b)) edges_a.push_back(static_cast<int>(e));
-    }
-    for (std::size_t e = 0; e < B.edges.size(); ++e) {
-      const auto [i, j] = B.edges[e];
-      if (segment_meets_box(vb[static_cast<std::size_t>(i)], vb[static_cast<std::size_t>(j)], lower_a, upper_a)) {
-        edges_b.push_back(static_cast<int>(e));
-      }
-    }
-    // The arcs of B's edges on the Gauss map of -B (the Minkowski difference is A + (-B)).
-    std::vector<std::array<Vec3, 3>> arcs_b(edges_b.size());
-    for (std::size_t k = 0; k < edges_b.size(); ++k) {
-      const auto [left, right] = B.edge_faces[static_cast<std::size_t>(edges_b[k])];
-      const Vec3 c1 = -nb[static_cast<std::size_t>(left)];
-      const Vec3 c2 = -nb[static_cast<std::size_t>(right)];
-      arcs_b[k] = {c1, c2, c2.cross(c1)};
-    }
-    for (int ea : edges_a) {
-      const auto [ia, ja] = A.edges[static_cast<std::size_t>(ea)];
-      const auto [left_a, right_a] = A.edge_faces[static_cast<std::size_t>(ea)];
-      const Vec3& a1 = A.face_normals[static_cast<std::size_t>(left_a)];
-      const Vec3& a2 = A.face_normals[static_cast<std::size_t>(right_a)];
-      const Vec3 a2_x_a1 = a2.cross(a1);
-      const Vec3& pa0 = A.vertices[static_cast<std::size_t>(ia)];
-      const Vec3 edge_a = A.vertices[static_cast<std::size_t>(ja)] - pa0;
-      for (std::size_t k = 0; k < edges_b.size(); ++k) {
-        const auto& arc = arcs_b[k];
-        if (!arcs_cross(a1, a2, a2_x_a1, arc[0], arc[1], arc[2])) continue;
-        const auto [ib, jb] = B.edges[static_cast<std::size_t>(edges_b[k])];
-        const Vec3& pb0 = vb[static_cast<std::size_t>(ib)];
-        const Vec3 edge_b = vb[static_cast<std::size_t>(jb)] - pb0;
-        Vec3 n = edge_a.cross(edge_b);
-        const double length2 = n.squaredNorm();
-        if (length2 <= 1e-20 * edge_a.squaredNorm() * edge_b.squaredNorm()) continue;  // parallel: a face case
-        n /= std::sqrt(length2);
-        if (n.dot(a1 + a2) < 0.0) n = -n;  // outward from A at edge A
-        // Exact for a polytope (the edges are the supports); confirmed with the full supports so
-        // slightly non-planar merged faces can never report more separation than there is.
-        if (n.dot(pb0 - pa0) <= best) continue;
-        const double value = separation(n);
-        if (value > best) {
-          best = value;
-          best_normal = n;
-          best_source = CommonPlaneSource::edge_edge;
-        }
-      }
-    }
+    if (!gjk.separated) best.value = std::min(best.value, 0.0);
+    search_face_normals(q, best);
+    search_edge_pairs(q, touching, size, best);
   }
-  // Temporal coherence: keep last step's plane when it is as good as the optimum.
-  if (initial_normal != nullptr && best_source != CommonPlaneSource::warm_start && f0 >= best - 1e-9 * size) {
-    best = f0;
-    best_normal = n0;
-    best_source = CommonPlaneSource::warm_start;
+  // --- 4. temporal coherence: keep last step's plane when it is as good as the optimum ---
+  if (initial_normal != nullptr && best.source != CommonPlaneSource::warm_start && f0 >= best.value - 1e-9 * size) {
+    best = {f0, n0, CommonPlaneSource::warm_start};
   }
-  result.normal = to_world(best_normal);
-  result.gap = best;
-  result.source = best_source;
+  result.normal = pa.rotation * best.normal;
+  result.gap = best.value;
+  result.source = best.source;
   return result;
 }
 
