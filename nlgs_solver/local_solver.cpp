@@ -37,49 +37,22 @@ double misalignment(const SlidingCandidate& c, const Vec2& d) {
   return c.tangential_velocity.x() * d.y() - c.tangential_velocity.y() * d.x();
 }
 
-}  // namespace
-
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
-  LocalSolution solution;
-  if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open
-
-  // Sticking: u = 0.
-  // Fixed-size 3x3 inverse by cofactors: W is symmetric positive definite (H^T M^-1 H), so no
-  // pivoting is needed, and it is several times cheaper than an LU factorisation.
-  const Vec3 stick = -(W.inverse() * u_free);
-  const double stick_tangential = tangential_norm(stick);
-  if (stick.x() > 0.0 && stick_tangential <= mu * stick.x()) {
-    solution.impulse = stick;
-    solution.regime = LocalSolution::Regime::sticking;
-    return solution;
-  }
-  if (mu == 0.0) {
-    // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
-    solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
-    solution.regime = LocalSolution::Regime::sliding;
-    return solution;
-  }
-
-  // Sliding: friction opposes the slip, so start from the direction opposite to the sticking
-  // impulse's tangential part (or the free slip direction).
-  Vec2 d = stick_tangential > 0.0 ? Vec2(-stick.y() / stick_tangential, -stick.z() / stick_tangential)
-                                  : Vec2(u_free.y(), u_free.z()).normalized();
-  if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
-  SlidingCandidate c;
-  // Newton on the angle phi of d for the misalignment f(phi) = u_T x d = 0, from the sticking
-  // trial's direction. A plain fixed point d <- u_T/||u_T|| diverges near the cone's boundary,
-  // where the slip is small; Newton on phi does not, since f' stays of the order of mu r_n W_TT.
-  // The derivative is exact and d is turned without trigonometry (profiled: sin/cos of a
-  // finite-difference derivative were ~15% of a step of the mixed deposit). With d' = (-d_s, d_t)
-  // and D = W_nn - mu W_nT.d (so r_n = -u_free_n / D):
-  //   D' = -mu W_nT.d',  r_n' = -r_n D'/D,  r' = r_n' (1, -mu d) + r_n (0, -mu d'),  u' = W r',
-  //   f' = u'_T x d + u_T x d'.
-  // The step turns d by -atan(delta) (d <- normalise(d - delta d')), which is a Newton step on
-  // phi to second order, so the convergence stays quadratic.
+/// The sliding solution by Newton on the angle phi of the slip direction d, for the misalignment
+/// f(phi) = u_T x d = 0, from the direction `d`. A plain fixed point d <- u_T/||u_T|| diverges near
+/// the cone's boundary, where the slip is small; Newton on phi does not, since f' stays of the
+/// order of mu r_n W_TT. The derivative is exact and d is turned without trigonometry (profiled:
+/// sin/cos of a finite-difference derivative were ~15% of a step of the mixed deposit). With
+/// d' = (-d_s, d_t) and D = W_nn - mu W_nT.d (so r_n = -u_free_n / D):
+///   D' = -mu W_nT.d',  r_n' = -r_n D'/D,  r' = r_n' (1, -mu d) + r_n (0, -mu d'),  u' = W r',
+///   f' = u'_T x d + u_T x d'.
+/// The step turns d by -atan(delta) (d <- normalise(d - delta d')), which is a Newton step on
+/// phi to second order, so the convergence stays quadratic. False when it does not converge in
+/// 40 iterations to a true sliding solution (u_T along d).
+bool slide_by_newton(const Mat3& W, const Vec3& u_free, double mu, Vec2 d, Vec3& impulse) {
   const auto cross = [](const Vec2& x, const Vec2& y) { return x.x() * y.y() - x.y() * y.x(); };
+  SlidingCandidate c;
   for (int iteration = 0; iteration < 40; ++iteration) {
-    if (!sliding_candidate(W, u_free, mu, d, c)) break;
+    if (!sliding_candidate(W, u_free, mu, d, c)) return false;
     const Vec2 turned(-d.y(), d.x());
     const double compliance = W(0, 0) - mu * (W(0, 1) * d.x() + W(0, 2) * d.y());
     const double compliance_rate = -mu * (W(0, 1) * turned.x() + W(0, 2) * turned.y());
@@ -91,21 +64,24 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
     const double value = cross(c.tangential_velocity, d);
     const double derivative =
         cross(Vec2(velocity_rate.y(), velocity_rate.z()), d) + cross(c.tangential_velocity, turned);
-    if (!std::isfinite(derivative) || derivative == 0.0) break;
+    if (!std::isfinite(derivative) || derivative == 0.0) return false;
     const double correction = std::clamp(value / derivative, -0.5, 0.5);
     d = (d - correction * turned).normalized();
     if (std::abs(correction) < 1e-13) {
-      if (!sliding_candidate(W, u_free, mu, d, c) || c.tangential_velocity.dot(d) < 0.0) break;
-      solution.impulse = c.impulse;
-      solution.regime = LocalSolution::Regime::sliding;
-      return solution;
+      if (!sliding_candidate(W, u_free, mu, d, c) || c.tangential_velocity.dot(d) < 0.0) return false;
+      impulse = c.impulse;
+      return true;
     }
   }
+  return false;
+}
 
-  // Fallback: scan the angle of d for sign changes of the misalignment where u_T . d > 0, bisect
-  // each bracket and keep the first root that is a true sliding solution (robust for any
-  // positive definite block, including strongly coupled ones).
+/// The sliding solution by a scan of the angle of d for sign changes of the misalignment where
+/// u_T . d > 0, each bracket bisected, the first root that is a true sliding solution kept
+/// (robust for any positive definite block, including strongly coupled ones). False when none is.
+bool slide_by_angle_scan(const Mat3& W, const Vec3& u_free, double mu, Vec3& impulse) {
   constexpr int samples = 360;
+  SlidingCandidate c;
   double best_angle = 0.0;
   bool found = false;
   double previous_angle = 0.0;
@@ -145,15 +121,44 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
     previous_valid = true;
   }
   const Vec2 d_best(std::cos(best_angle), std::sin(best_angle));
-  if (found && sliding_candidate(W, u_free, mu, d_best, c)) {
-    solution.impulse = c.impulse;
-  } else {
-    // Degenerate block: fall back to the projection of the sticking impulse onto the cone.
-    const double r_n = std::max(stick.x(), 0.0);
-    const double scale = stick_tangential > 0.0 ? mu * r_n / stick_tangential : 0.0;
-    solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
+  if (!found || !sliding_candidate(W, u_free, mu, d_best, c)) return false;
+  impulse = c.impulse;
+  return true;
+}
+
+}  // namespace
+
+LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
+  LocalSolution solution;
+  if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open
+
+  // Sticking: u = 0.
+  // Fixed-size 3x3 inverse by cofactors: W is symmetric positive definite (H^T M^-1 H), so no
+  // pivoting is needed, and it is several times cheaper than an LU factorisation.
+  const Vec3 stick = -(W.inverse() * u_free);
+  const double stick_tangential = tangential_norm(stick);
+  if (stick.x() > 0.0 && stick_tangential <= mu * stick.x()) {
+    solution.impulse = stick;
+    solution.regime = LocalSolution::Regime::sticking;
+    return solution;
   }
   solution.regime = LocalSolution::Regime::sliding;
+  if (mu == 0.0) {
+    // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
+    solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
+    return solution;
+  }
+  // Sliding: friction opposes the slip, so start from the direction opposite to the sticking
+  // impulse's tangential part (or the free slip direction).
+  Vec2 d = stick_tangential > 0.0 ? Vec2(-stick.y() / stick_tangential, -stick.z() / stick_tangential)
+                                  : Vec2(u_free.y(), u_free.z()).normalized();
+  if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
+  if (slide_by_newton(W, u_free, mu, d, solution.impulse)) return solution;
+  if (slide_by_angle_scan(W, u_free, mu, solution.impulse)) return solution;
+  // Degenerate block: fall back to the projection of the sticking impulse onto the cone.
+  const double r_n = std::max(stick.x(), 0.0);
+  const double scale = stick_tangential > 0.0 ? mu * r_n / stick_tangential : 0.0;
+  solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
   return solution;
 }
 
