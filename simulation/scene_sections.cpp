@@ -62,7 +62,7 @@ void parse_self_gravity(const TableReader& table, bool tree, GravitySettings& gr
   } else {
     table.allow_only({"type", "G", "softening", "evaluate_every", "backend"}, "for [gravity] type = \"direct\"");
   }
-  // Held field between evaluations (step.cpp); capped so a typo cannot freeze gravity for a run.
+  // Held field between evaluations (external_forces.cpp); capped so a typo cannot freeze gravity for a run.
   gravity.evaluate_every = static_cast<int>(table.integer_or("evaluate_every", 1, 1, 1'000'000));
   gravity.kind = GravitySettings::Kind::self;
   auto& self = gravity.self_gravity;

@@ -9,39 +9,11 @@
 #include "core/integrator.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
-#include "core/units.hpp"
-#include "gravity/gravity.hpp"
 #include "nlgs_solver/nlgs.hpp"
+#include "simulation/external_forces.hpp"
 #include "simulation/step_carry.hpp"
 
 namespace rubble {
-
-/// A fixed point mass M at `centre` pulling every grain (Kind::central):
-///   a(x) = -G M (x - c) / (|x - c|^2 + eps^2)^(3/2),
-/// the Plummer-softened Kepler field (Plummer 1911; Binney & Tremaine, Galactic Dynamics, eq. 2.44a):
-/// exact 1/r^2 for |x - c| >> eps, finite (and going linearly to 0) at the centre, so a grain
-/// reaching c meets no singular force.
-struct CentralField {
-  Vec3 centre = Vec3::Zero();                ///< c, m
-  double mass = 0.0;                         ///< M, kg
-  double G = units::gravitational_constant;  ///< gravitational constant, m^3 kg^-1 s^-2
-  double softening = 0.0;                    ///< eps, m (0: the exact point-mass field)
-};
-
-/// The acceleration of the central field at `position`.
-Vec3 central_acceleration(const CentralField& field, const Vec3& position);
-
-/// Which gravity acts on the grains.
-struct GravitySettings {
-  enum class Kind { none, uniform, self, central };
-  Kind kind = Kind::none;                  ///< none, a uniform field, self-gravity or a central mass
-  Vec3 acceleration = Vec3::Zero();        ///< m/s^2, for Kind::uniform
-  gravity::GravityOptions self_gravity{};  ///< for Kind::self (direct or tree, G, theta, order)
-  CentralField central{};                  ///< for Kind::central
-  /// For Kind::self: the field is evaluated every `evaluate_every` steps and held in between
-  /// (StepCarry::held_gravity); 1 = every step, the exact scheme.
-  int evaluate_every = 1;
-};
 
 /// Everything one step needs to know besides the model and the state.
 struct StepOptions {
@@ -50,11 +22,6 @@ struct StepOptions {
   SolverOptions solver{};          ///< NLGS settings
   GravitySettings gravity{};       ///< external field
 };
-
-/// The grains' gravitational potential energy in the field `gravity` at `state`, J (self-gravity:
-/// 1/2 sum m_i phi_i by the configured direct sum or tree; uniform: -sum m g.x; central mass:
-/// -sum G M m / sqrt(r^2 + eps^2)).
-double gravitational_potential_energy(const Model& model, const State& state, const GravitySettings& gravity);
 
 /// The stages of a step, in execution order (step.cpp), for timing reports.
 enum class Stage {

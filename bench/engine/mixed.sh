@@ -13,6 +13,7 @@
 #      criterion: 99% of the grains slower than 2 cm/s, Z and contacts still, for 0.05 s); then writes
 #      the last snapshot as a scene with every grain listed (rubble export) ($WORK/settled.toml: same walls, materials, contact laws,
 #      solver; dt = 1e-4 s) and runs WARMUP steps of it (warm start rebuilt; checkpoint at the end);
+#      (the pour's sweep cap, carried by the export, is set back to the scene's 1000);
 #  (b) for each thread count, copies the warmed-up run and resumes it for STEPS steps
 #      (`rubble run --resume DIR --end-time T+STEPS*dt`) under /usr/bin/time; the start-up cost
 #      (scene parse, checkpoint load) is measured by a 1-step resume and subtracted from the CPU time.
@@ -68,6 +69,10 @@ text = open(out).read()
 text = re.sub(r"\[time\]\n.*?\n\n", f"[time]\ndt = 1e-4\ntheta = 0.5\nend_time = {warmup * 1e-4!r}\n\n", text, count=1,
               flags=re.S)
 text = text.replace('name = "mixed-deposit"', 'name = "mixed-deposit-settled"', 1)
+# The export carries the pour's sweep cap; the timed steps use the scene's own (1000).
+if "\nmax_iterations = 39\n" not in text:
+    sys.exit("mixed.sh: the exported scene has no max_iterations = 39 to restore")
+text = text.replace("\nmax_iterations = 39\n", "\nmax_iterations = 1000\n", 1)
 open(out, "w").write(text)
 print(f"settled scene: {out}")
 EOF

@@ -1,4 +1,4 @@
-// Self-gravity evaluated every k steps ([gravity] evaluate_every, simulation/step.cpp): the error
+// Self-gravity evaluated every k steps ([gravity] evaluate_every, simulation/external_forces.cpp): the error
 // of the held field against the field a k = 1 run would use at the same positions, and the time
 // of the gravity stage.
 //   every_k SCENE.toml --steps N --k 1,2,4,8,16 --csv OUT.csv

@@ -1,4 +1,4 @@
-// simulation/step.cpp, gravity stage: the central field (Kind::central) against Kepler's closed
+// simulation/external_forces.cpp (stage 2 of the step): the central field (Kind::central) against Kepler's closed
 // forms, and self-gravity evaluated every k steps (GravitySettings::evaluate_every): k = 1 is the
 // default scheme bit for bit, k > 1 holds the field between evaluations and the held field equals
 // an independent direct sum at the evaluation steps.
