@@ -181,17 +181,18 @@ AggregateMetrics compute_metrics(const Model& model, const State& state, const C
   return compute_metrics(model, grain_sizes(model), state, contacts, potential, options);
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, const State& state,
-                                 const ContactList& contacts, const PotentialSettings& potential,
-                                 const ContactMetricsOptions& options) {
-  AggregateMetrics m;
-  m.time = state.time;
-  m.step = state.step;
-  const std::size_t n = model.body_count();
+namespace {
 
-  // Energies and grain volume.
-  for (std::size_t i = 0; i < n; ++i) {
+/// What later blocks of compute_metrics need from the energies: the grains' total mass and, under
+/// self-gravity, each body's potential phi_i (J/kg, 0 for walls; empty otherwise) for the escape test.
+struct MassAndPotential {
+  double total_mass = 0.0;
+  std::vector<double> phi;
+};
+
+/// Grains, their volume and kinetic energies (translation and rotation, each summed apart).
+void add_grain_energies(const Model& model, const State& state, AggregateMetrics& m) {
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
     if (!model.is_grain(i)) continue;
     ++m.grains;
     const Vec3 w_body = state.orientation[i].conjugate() * state.angular_velocity[i];
@@ -199,15 +200,18 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
     m.rotational_energy += 0.5 * w_body.dot(model.principal_inertia[i].cwiseProduct(w_body));
     m.grain_volume += model.volume[i];
   }
-  if (m.grains == 0) return m;
+}
+
+/// Kinetic, potential and total energy, momenta and centre of mass (docs/postprocessing.md).
+MassAndPotential add_energies_and_momenta(const Model& model, const State& state, const PotentialSettings& potential,
+                                          AggregateMetrics& m) {
   m.kinetic_energy = m.translational_energy + m.rotational_energy;
   m.mean_kinetic_energy = m.kinetic_energy / static_cast<double>(m.grains);
-  // Self-gravity: the per-grain potential serves the energy and the escape test below.
-  const std::vector<double> phi = potential.kind == PotentialSettings::Kind::self
-                                      ? self_gravity_potentials(model, state, potential)
-                                      : std::vector<double>();
+  // Self-gravity: the per-grain potential serves the energy and the escape test.
+  MassAndPotential result;
   if (potential.kind == PotentialSettings::Kind::self) {
-    for (std::size_t i = 0; i < n; ++i) m.potential_energy += 0.5 * model.mass[i] * phi[i];
+    result.phi = self_gravity_potentials(model, state, potential);
+    for (std::size_t i = 0; i < model.body_count(); ++i) m.potential_energy += 0.5 * model.mass[i] * result.phi[i];
   } else {
     m.potential_energy = potential_energy(model, state, potential);
   }
@@ -216,14 +220,17 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
   m.linear_momentum = momenta.linear;
   m.angular_momentum = momenta.angular;
   m.centre_of_mass = momenta.centre_of_mass;
-  const double total_mass = momenta.mass;
+  result.total_mass = momenta.mass;
+  return result;
+}
 
-  // Sizes, D_max. Grain diameters are those of the circumscribed spheres (the smallest enclosing
-  // balls), as the accretion study measures its grains; D_max reaches the farthest point of any
-  // grain from x_cm exactly (a polyhedron's farthest vertex), so it is the diameter of the smallest
-  // sphere about x_cm that holds every grain whole.
+/// Sizes, D_max and the packing fraction. Grain diameters are those of the circumscribed spheres
+/// (the smallest enclosing balls), as the accretion study measures its grains; D_max reaches the
+/// farthest point of any grain from x_cm exactly (a polyhedron's farthest vertex), so it is the
+/// diameter of the smallest sphere about x_cm that holds every grain whole.
+void add_sizes(const Model& model, const GrainSizes& sizes, const State& state, AggregateMetrics& m) {
   double reach = 0.0, diameter_sum = 0.0, equivalent_sum = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
     if (!model.is_grain(i)) continue;
     reach = std::max(reach, farthest_reach(model, state, i, m.centre_of_mass));
     diameter_sum += sizes.circumscribed_diameter[i];
@@ -235,10 +242,14 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
   m.equivalent_diameter = equivalent_sum / grains;
   const double aggregate_volume = std::numbers::pi * std::pow(m.aggregate_diameter, 3) / 6.0;
   m.packing_fraction = aggregate_volume > 0.0 ? m.grain_volume / aggregate_volume : 0.0;
+}
 
-  // Inner sphere: diameter D_max / 2 about the centre of mass, away from the loose surface.
-  // Spheres contribute their exact overlap with it; polyhedra their whole volume when their
-  // centre is inside (an approximation whose error is confined to the inner sphere's surface).
+/// Inner sphere: diameter D_max / 2 about the centre of mass, away from the loose surface.
+/// Spheres contribute their exact overlap with it; polyhedra their whole volume when their centre
+/// is inside (an approximation whose error is confined to the inner sphere's surface). Returns, per
+/// body, whether its centre is inside (for the inner coordination).
+std::vector<char> add_inner_sphere(const Model& model, const State& state, AggregateMetrics& m) {
+  const std::size_t n = model.body_count();
   const double inner_radius = 0.25 * m.aggregate_diameter;
   double inner_volume = 0.0;
   std::vector<char> inner(n, 0);
@@ -255,36 +266,39 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
   }
   const double inner_sphere_volume = 4.0 / 3.0 * std::numbers::pi * std::pow(inner_radius, 3);
   m.inner_packing_fraction = inner_sphere_volume > 0.0 ? inner_volume / inner_sphere_volume : 0.0;
+  return inner;
+}
 
-  // Inertia-equivalent ellipsoid. D_max and nu above are set by the single farthest grain, so at
-  // small n_s the rough surface layer (a grain diameter thick) dominates them: a compact
-  // 125-sphere pile whose bulk is at 0.67 gives nu = 0.32. The uniform ellipsoid with the same
-  // mass and inertia tensor weighs every grain by its mass, not just the outermost one; its
-  // volume is the aggregate's volume as a continuum, and nu_I the aggregate's bulk packing fraction
-  // (for one density, the bulk density over the grain density). For a uniform ellipsoid of
-  // semi-axes s_i, I_i = M (s_j^2 + s_k^2) / 5, hence s_i^2 = 5 (I_j + I_k - I_i) / (2 M).
+/// Inertia-equivalent ellipsoid. D_max and nu above are set by the single farthest grain, so at
+/// small n_s the rough surface layer (a grain diameter thick) dominates them: a compact 125-sphere
+/// pile whose bulk is at 0.67 gives nu = 0.32. The uniform ellipsoid with the same mass and inertia
+/// tensor weighs every grain by its mass, not just the outermost one; its volume is the aggregate's
+/// volume as a continuum, and nu_I the aggregate's bulk packing fraction (for one density, the bulk
+/// density over the grain density). For a uniform ellipsoid of semi-axes s_i,
+/// I_i = M (s_j^2 + s_k^2) / 5, hence s_i^2 = 5 (I_j + I_k - I_i) / (2 M).
+void add_inertia_ellipsoid(const Model& model, const State& state, double total_mass, AggregateMetrics& m) {
   Mat3 inertia = Mat3::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < model.body_count(); ++i) {
     if (!model.is_grain(i)) continue;
     const Vec3 arm = state.position[i] - m.centre_of_mass;
     const Mat3 rotation = state.orientation[i].toRotationMatrix();
     inertia += model.mass[i] * (arm.squaredNorm() * Mat3::Identity() - arm * arm.transpose()) +
                rotation * model.principal_inertia[i].asDiagonal() * rotation.transpose();
   }
-  if (total_mass > 0.0) {
-    const Vec3 moments =
-        Eigen::SelfAdjointEigenSolver<Mat3>(inertia, Eigen::EigenvaluesOnly).eigenvalues();  // ascending
-    for (int k = 0; k < 3; ++k) {
-      // The smallest moment is about the longest axis; max(0, .) guards round-off for a chain.
-      m.inertia_semi_axes[k] = std::sqrt(std::max(0.0, 5.0 * (moments.sum() - 2.0 * moments[k]) / (2.0 * total_mass)));
-    }
-    const double product = m.inertia_semi_axes.prod();
-    m.inertia_aspect_ratio = m.inertia_semi_axes[2] > 0.0 ? m.inertia_semi_axes[0] / m.inertia_semi_axes[2] : 0.0;
-    m.inertia_diameter = 2.0 * std::cbrt(product);
-    m.inertia_packing_fraction = product > 0.0 ? m.grain_volume / (4.0 / 3.0 * std::numbers::pi * product) : 0.0;
+  if (!(total_mass > 0.0)) return;
+  const Vec3 moments = Eigen::SelfAdjointEigenSolver<Mat3>(inertia, Eigen::EigenvaluesOnly).eigenvalues();  // ascending
+  for (int k = 0; k < 3; ++k) {
+    // The smallest moment is about the longest axis; max(0, .) guards round-off for a chain.
+    m.inertia_semi_axes[k] = std::sqrt(std::max(0.0, 5.0 * (moments.sum() - 2.0 * moments[k]) / (2.0 * total_mass)));
   }
+  const double product = m.inertia_semi_axes.prod();
+  m.inertia_aspect_ratio = m.inertia_semi_axes[2] > 0.0 ? m.inertia_semi_axes[0] / m.inertia_semi_axes[2] : 0.0;
+  m.inertia_diameter = 2.0 * std::cbrt(product);
+  m.inertia_packing_fraction = product > 0.0 ? m.grain_volume / (4.0 / 3.0 * std::numbers::pi * product) : 0.0;
+}
 
-  // Contacts: points, pairs, coordination, rattlers.
+/// Contact points: count, deepest overlap, force-bearing and sliding points, normal impulses.
+void add_contact_points(const ContactList& contacts, const ContactMetricsOptions& options, AggregateMetrics& m) {
   double impulse_sum = 0.0;
   for (const Contact& contact : contacts) {
     ++m.contact_points;
@@ -299,6 +313,12 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
     m.mean_normal_impulse = impulse_sum / static_cast<double>(m.force_bearing_points);
     m.sliding_fraction = static_cast<double>(m.sliding_points) / static_cast<double>(m.force_bearing_points);
   }
+}
+
+/// Pairs in contact, coordination number Z, rattlers, Z without rattlers and the inner sphere's Z.
+void add_coordination(const Model& model, const ContactList& contacts, const ContactMetricsOptions& options,
+                      const std::vector<char>& inner, AggregateMetrics& m) {
+  const std::size_t n = model.body_count();
   const auto pairs = force_bearing_pairs(contacts, options);
   std::vector<int> grain_neighbours(n, 0), all_neighbours(n, 0);
   for (const auto& [a, b] : pairs) {
@@ -313,7 +333,7 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
     ++all_neighbours[a];
     ++all_neighbours[b];
   }
-  m.coordination = 2.0 * static_cast<double>(m.grain_contacts) / grains;
+  m.coordination = 2.0 * static_cast<double>(m.grain_contacts) / static_cast<double>(m.grains);
 
   std::vector<char> rattler(n, 0);
   std::int64_t inner_contact_sum = 0;
@@ -332,11 +352,15 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
       backbone_grains > 0 ? 2.0 * static_cast<double>(backbone_contacts) / static_cast<double>(backbone_grains) : 0.0;
   m.inner_coordination =
       m.inner_grains > 0 ? static_cast<double>(inner_contact_sum) / static_cast<double>(m.inner_grains) : 0.0;
+}
 
-  // Detached grains: outside the largest cluster of the contact network. Every listed point joins
-  // its pair, force-bearing or not: in a frictionless pile at rest the forces are not unique
-  // (Radjai & Dubois 2011), so a touching grain may carry none at one instant yet is no less part
-  // of the aggregate.
+/// Detached grains: outside the largest cluster of the contact network. Every listed point joins
+/// its pair, force-bearing or not: in a frictionless pile at rest the forces are not unique
+/// (Radjai & Dubois 2011), so a touching grain may carry none at one instant yet is no less part of
+/// the aggregate. Escaping ones among them need the self-gravity potential (`gravity.phi`).
+void add_detached_grains(const Model& model, const State& state, const ContactList& contacts,
+                         const MassAndPotential& gravity, AggregateMetrics& m) {
+  const std::size_t n = model.body_count();
   std::vector<std::size_t> parent(n);
   std::iota(parent.begin(), parent.end(), std::size_t{0});
   for (const Contact& contact : contacts) {
@@ -350,14 +374,35 @@ AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, co
   }
   const std::size_t largest =
       static_cast<std::size_t>(std::max_element(cluster_size.begin(), cluster_size.end()) - cluster_size.begin());
+  const double total_mass = gravity.total_mass;
   const Vec3 v_cm = total_mass > 0.0 ? Vec3(m.linear_momentum / total_mass) : Vec3::Zero();
   for (std::size_t i = 0; i < n; ++i) {
     if (!model.is_grain(i) || find_root(parent, i) == largest) continue;
     ++m.detached_grains;
     // Escape: positive specific energy in the field of all the other grains, the velocity taken
     // relative to the grains' centre of mass (the aggregate's frame).
+    const std::vector<double>& phi = gravity.phi;
     if (!phi.empty() && 0.5 * (state.velocity[i] - v_cm).squaredNorm() + phi[i] > 0.0) ++m.escaping_grains;
   }
+}
+
+}  // namespace
+
+AggregateMetrics compute_metrics(const Model& model, const GrainSizes& sizes, const State& state,
+                                 const ContactList& contacts, const PotentialSettings& potential,
+                                 const ContactMetricsOptions& options) {
+  AggregateMetrics m;
+  m.time = state.time;
+  m.step = state.step;
+  add_grain_energies(model, state, m);
+  if (m.grains == 0) return m;
+  const MassAndPotential gravity = add_energies_and_momenta(model, state, potential, m);
+  add_sizes(model, sizes, state, m);
+  const std::vector<char> inner = add_inner_sphere(model, state, m);
+  add_inertia_ellipsoid(model, state, gravity.total_mass, m);
+  add_contact_points(contacts, options, m);
+  add_coordination(model, contacts, options, inner, m);
+  add_detached_grains(model, state, contacts, gravity, m);
   return m;
 }
 
