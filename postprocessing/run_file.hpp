@@ -1,7 +1,8 @@
 #pragma once
 // The HDF5 run file: what a run writes (the model, the scene text, one row of the per-step series
 // per step, state + contact snapshots) and what post-processing reads back. The layout is
-// documented in docs/output-format.md; that document and run_file.cpp must stay in step.
+// documented in docs/output-format.md; that document and run_file.cpp, run_file_datasets.cpp must
+// stay in step.
 #include <array>
 #include <cstdint>
 #include <filesystem>
