@@ -64,108 +64,132 @@ std::vector<std::int64_t> read_int_column_any(hid_t parent, const std::string& n
   return std::move(array.values);
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-Model read_model(hid_t root, const fs::path& file) {
-  Handle group = hdf5::open_group(root, "model", file);
-  const hid_t g = group.get();
-  Model model;
-  const std::vector<std::int64_t> kind_codes = read_int_column_any(g, "body_shape_kind", file);
-  const std::size_t n = kind_codes.size();
-  const std::vector<std::int64_t> shape_index = read_int_column(g, "body_shape_index", n, file);
-  const std::vector<std::int64_t> material = read_int_column(g, "material", n, file);
+/// The per-body datasets of /model, read before the shape tables that their indices point into.
+struct BodyColumns {
+  std::vector<std::int64_t> kind_codes, shape_index, material;
+  std::vector<double> radius;
+};
+
+/// Reads the per-body datasets: mass, volume, bounding radius and principal moments into `model`,
+/// the shape kinds and indices, materials and sphere radii into the returned columns (checked in
+/// add_bodies once the tables are read).
+BodyColumns read_body_columns(hid_t g, Model& model, const fs::path& file) {
+  BodyColumns columns;
+  columns.kind_codes = read_int_column_any(g, "body_shape_kind", file);
+  const std::size_t n = columns.kind_codes.size();
+  columns.shape_index = read_int_column(g, "body_shape_index", n, file);
+  columns.material = read_int_column(g, "material", n, file);
   model.mass = read_column(g, "mass", n, file);
   model.volume = read_column(g, "volume", n, file);
   model.bounding_radius = read_column(g, "bounding_radius", n, file);
-  const std::vector<double> radius = read_column(g, "radius", n, file);
+  columns.radius = read_column(g, "radius", n, file);
   model.principal_inertia = read_vec3s(g, "principal_inertia", n, file);
+  return columns;
+}
 
-  // Materials and contact laws.
-  {
-    Handle materials = hdf5::open_group(g, "materials", file);
-    const std::vector<std::string> names = hdf5::read_strings(materials.get(), "name", file);
-    const std::vector<double> density = read_column(materials.get(), "density", names.size(), file);
-    for (std::size_t m = 0; m < names.size(); ++m) model.materials.push_back({names[m], density[m]});
-    Handle laws = hdf5::open_group(g, "contact_laws", file);
-    const std::size_t count = names.size();
-    const hdf5::Array<double> friction = hdf5::read_doubles(laws.get(), "friction", file);
-    const hdf5::Array<double> restitution = hdf5::read_doubles(laws.get(), "restitution", file);
-    expect_shape(friction, count, count, "contact_laws/friction", file);
-    expect_shape(restitution, count, count, "contact_laws/restitution", file);
-    model.contact_laws.reset(static_cast<int>(count), ContactLaw{});
-    for (std::size_t k = 0; k < count * count; ++k) {
-      model.contact_laws.laws[k] = ContactLaw{friction.values[k], restitution.values[k]};
-    }
-    for (const ContactLawField& field : optional_contact_law_fields) {
-      if (!hdf5::exists(laws.get(), field.name)) continue;  // a file written before they were stored
-      const hdf5::Array<double> values = hdf5::read_doubles(laws.get(), field.name, file);
-      expect_shape(values, count, count, std::string("contact_laws/") + field.name, file);
-      for (std::size_t k = 0; k < count * count; ++k) model.contact_laws.laws[k].*field.member = values.values[k];
-    }
+/// /model/materials and /model/contact_laws (the parameters of optional_contact_law_fields are 0
+/// in a file written before they were stored).
+void read_materials_and_laws(hid_t g, Model& model, const fs::path& file) {
+  Handle materials = hdf5::open_group(g, "materials", file);
+  const std::vector<std::string> names = hdf5::read_strings(materials.get(), "name", file);
+  const std::vector<double> density = read_column(materials.get(), "density", names.size(), file);
+  for (std::size_t m = 0; m < names.size(); ++m) model.materials.push_back({names[m], density[m]});
+  Handle laws = hdf5::open_group(g, "contact_laws", file);
+  const std::size_t count = names.size();
+  const hdf5::Array<double> friction = hdf5::read_doubles(laws.get(), "friction", file);
+  const hdf5::Array<double> restitution = hdf5::read_doubles(laws.get(), "restitution", file);
+  expect_shape(friction, count, count, "contact_laws/friction", file);
+  expect_shape(restitution, count, count, "contact_laws/restitution", file);
+  model.contact_laws.reset(static_cast<int>(count), ContactLaw{});
+  for (std::size_t k = 0; k < count * count; ++k) {
+    model.contact_laws.laws[k] = ContactLaw{friction.values[k], restitution.values[k]};
   }
-
-  // Shape tables.
-  {
-    Handle polyhedra = hdf5::open_group(g, "polyhedra", file);
-    const hid_t p = polyhedra.get();
-    const std::vector<Vec3> vertices = read_vec3s_any(p, "vertices", file);
-    const std::vector<std::int64_t> vertex_offset = read_int_column_any(p, "vertex_offset", file);
-    const std::vector<std::int64_t> face_vertices = read_int_column_any(p, "face_vertices", file);
-    const std::vector<std::int64_t> face_offset = read_int_column_any(p, "face_offset", file);
-    const std::vector<std::int64_t> polyhedron_face_offset = read_int_column_any(p, "polyhedron_face_offset", file);
-    const std::vector<Vec3> face_normal =
-        read_vec3s(p, "face_normal", face_offset.empty() ? 0 : face_offset.size() - 1, file);
-    const std::size_t count = vertex_offset.empty() ? 0 : vertex_offset.size() - 1;
-    const auto in_range = [](std::int64_t value, std::size_t end) {
-      return value >= 0 && static_cast<std::size_t>(value) <= end;
-    };
-    if (polyhedron_face_offset.size() != count + 1)
-      bad(file, "polyhedra: vertex_offset and polyhedron_face_offset differ in length");
-    for (std::size_t s = 0; s < count; ++s) {
-      ConvexPolyhedron shape;
-      const std::int64_t v0 = vertex_offset[s], v1 = vertex_offset[s + 1];
-      const std::int64_t f0 = polyhedron_face_offset[s], f1 = polyhedron_face_offset[s + 1];
-      if (!in_range(v0, vertices.size()) || !in_range(v1, vertices.size()) || v1 < v0 ||
-          !in_range(f0, face_normal.size()) || !in_range(f1, face_normal.size()) || f1 < f0) {
-        bad(file, "polyhedra: offsets of polyhedron " + std::to_string(s) + " out of range");
-      }
-      shape.vertices.assign(vertices.begin() + v0, vertices.begin() + v1);
-      std::set<std::pair<int, int>> edges;
-      for (std::int64_t f = f0; f < f1; ++f) {
-        const std::int64_t k0 = face_offset[static_cast<std::size_t>(f)],
-                           k1 = face_offset[static_cast<std::size_t>(f) + 1];
-        if (!in_range(k0, face_vertices.size()) || !in_range(k1, face_vertices.size()) || k1 < k0 + 3) {
-          bad(file, "polyhedra: face " + std::to_string(f) + " has bad offsets or fewer than 3 vertices");
-        }
-        std::vector<int> face;
-        for (std::int64_t k = k0; k < k1; ++k) {
-          const std::int64_t v = face_vertices[static_cast<std::size_t>(k)];
-          if (v < 0 || v >= v1 - v0)
-            bad(file, "polyhedra: face " + std::to_string(f) + " has a vertex index out of range");
-          face.push_back(static_cast<int>(v));
-        }
-        for (std::size_t k = 0; k < face.size(); ++k) {
-          const int a = face[k], b = face[(k + 1) % face.size()];
-          edges.insert({std::min(a, b), std::max(a, b)});
-        }
-        shape.faces.push_back(std::move(face));
-        shape.face_normals.push_back(face_normal[static_cast<std::size_t>(f)]);
-      }
-      shape.edges.assign(edges.begin(), edges.end());
-      model.polyhedra.push_back(std::move(shape));
-    }
-    Handle planes = hdf5::open_group(g, "planes", file);
-    for (const Vec3& normal : read_vec3s_any(planes.get(), "normal", file)) model.planes.push_back(Plane{normal});
-    Handle boxes = hdf5::open_group(g, "boxes", file);
-    for (const Vec3& half : read_vec3s_any(boxes.get(), "half_extents", file)) model.boxes.push_back(Box{half});
+  for (const ContactLawField& field : optional_contact_law_fields) {
+    if (!hdf5::exists(laws.get(), field.name)) continue;  // a file written before they were stored
+    const hdf5::Array<double> values = hdf5::read_doubles(laws.get(), field.name, file);
+    expect_shape(values, count, count, std::string("contact_laws/") + field.name, file);
+    for (std::size_t k = 0; k < count * count; ++k) model.contact_laws.laws[k].*field.member = values.values[k];
   }
+}
 
-  // Per body; spheres get their table back from the per-body radius.
-  for (std::size_t i = 0; i < n; ++i) {
-    if (kind_codes[i] < 0 || kind_codes[i] > static_cast<std::int64_t>(ShapeKind::box)) {
-      bad(file, "model: body " + std::to_string(i) + " has an unknown shape kind " + std::to_string(kind_codes[i]));
+/// The flat arrays of /model/polyhedra (layout: docs/output-format.md).
+struct PolyhedronTables {
+  std::vector<Vec3> vertices;
+  std::vector<std::int64_t> vertex_offset, face_vertices, face_offset, polyhedron_face_offset;
+  std::vector<Vec3> face_normal;
+};
+
+bool in_range(std::int64_t value, std::size_t end) { return value >= 0 && static_cast<std::size_t>(value) <= end; }
+
+/// Polyhedron `s` of the tables, its offsets and indices checked, its edges rebuilt from its faces.
+ConvexPolyhedron polyhedron_from_tables(const PolyhedronTables& t, std::size_t s, const fs::path& file) {
+  ConvexPolyhedron shape;
+  const std::int64_t v0 = t.vertex_offset[s], v1 = t.vertex_offset[s + 1];
+  const std::int64_t f0 = t.polyhedron_face_offset[s], f1 = t.polyhedron_face_offset[s + 1];
+  if (!in_range(v0, t.vertices.size()) || !in_range(v1, t.vertices.size()) || v1 < v0 ||
+      !in_range(f0, t.face_normal.size()) || !in_range(f1, t.face_normal.size()) || f1 < f0) {
+    bad(file, "polyhedra: offsets of polyhedron " + std::to_string(s) + " out of range");
+  }
+  shape.vertices.assign(t.vertices.begin() + v0, t.vertices.begin() + v1);
+  std::set<std::pair<int, int>> edges;
+  for (std::int64_t f = f0; f < f1; ++f) {
+    const std::int64_t k0 = t.face_offset[static_cast<std::size_t>(f)],
+                       k1 = t.face_offset[static_cast<std::size_t>(f) + 1];
+    if (!in_range(k0, t.face_vertices.size()) || !in_range(k1, t.face_vertices.size()) || k1 < k0 + 3) {
+      bad(file, "polyhedra: face " + std::to_string(f) + " has bad offsets or fewer than 3 vertices");
     }
-    const auto kind = static_cast<ShapeKind>(kind_codes[i]);
-    const std::int64_t index = shape_index[i];
+    std::vector<int> face;
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t v = t.face_vertices[static_cast<std::size_t>(k)];
+      if (v < 0 || v >= v1 - v0) bad(file, "polyhedra: face " + std::to_string(f) + " has a vertex index out of range");
+      face.push_back(static_cast<int>(v));
+    }
+    for (std::size_t k = 0; k < face.size(); ++k) {
+      const int a = face[k], b = face[(k + 1) % face.size()];
+      edges.insert({std::min(a, b), std::max(a, b)});
+    }
+    shape.faces.push_back(std::move(face));
+    shape.face_normals.push_back(t.face_normal[static_cast<std::size_t>(f)]);
+  }
+  shape.edges.assign(edges.begin(), edges.end());
+  return shape;
+}
+
+/// /model/polyhedra into model.polyhedra.
+void read_polyhedra(hid_t g, Model& model, const fs::path& file) {
+  Handle polyhedra = hdf5::open_group(g, "polyhedra", file);
+  const hid_t p = polyhedra.get();
+  PolyhedronTables t;
+  t.vertices = read_vec3s_any(p, "vertices", file);
+  t.vertex_offset = read_int_column_any(p, "vertex_offset", file);
+  t.face_vertices = read_int_column_any(p, "face_vertices", file);
+  t.face_offset = read_int_column_any(p, "face_offset", file);
+  t.polyhedron_face_offset = read_int_column_any(p, "polyhedron_face_offset", file);
+  t.face_normal = read_vec3s(p, "face_normal", t.face_offset.empty() ? 0 : t.face_offset.size() - 1, file);
+  const std::size_t count = t.vertex_offset.empty() ? 0 : t.vertex_offset.size() - 1;
+  if (t.polyhedron_face_offset.size() != count + 1)
+    bad(file, "polyhedra: vertex_offset and polyhedron_face_offset differ in length");
+  for (std::size_t s = 0; s < count; ++s) model.polyhedra.push_back(polyhedron_from_tables(t, s, file));
+}
+
+/// /model/planes and /model/boxes: the walls' shape tables.
+void read_walls(hid_t g, Model& model, const fs::path& file) {
+  Handle planes = hdf5::open_group(g, "planes", file);
+  for (const Vec3& normal : read_vec3s_any(planes.get(), "normal", file)) model.planes.push_back(Plane{normal});
+  Handle boxes = hdf5::open_group(g, "boxes", file);
+  for (const Vec3& half : read_vec3s_any(boxes.get(), "half_extents", file)) model.boxes.push_back(Box{half});
+}
+
+/// Per body, its shape kind and index and its material checked against the tables; spheres get
+/// their table back from the per-body radius; inverse mass and inertia follow from the columns.
+void add_bodies(const BodyColumns& columns, Model& model, const fs::path& file) {
+  for (std::size_t i = 0; i < columns.kind_codes.size(); ++i) {
+    const std::int64_t code = columns.kind_codes[i];
+    if (code < 0 || code > static_cast<std::int64_t>(ShapeKind::box)) {
+      bad(file, "model: body " + std::to_string(i) + " has an unknown shape kind " + std::to_string(code));
+    }
+    const auto kind = static_cast<ShapeKind>(code);
+    const std::int64_t index = columns.shape_index[i];
     const std::size_t table_size = kind == ShapeKind::sphere       ? static_cast<std::size_t>(-1)
                                    : kind == ShapeKind::polyhedron ? model.polyhedra.size()
                                    : kind == ShapeKind::plane      ? model.planes.size()
@@ -173,21 +197,33 @@ Model read_model(hid_t root, const fs::path& file) {
     if (index < 0 || static_cast<std::size_t>(index) >= table_size) {
       bad(file, "model: body " + std::to_string(i) + " has a shape index out of range");
     }
-    if (material[i] < 0 || static_cast<std::size_t>(material[i]) >= model.materials.size()) {
+    const std::int64_t material = columns.material[i];
+    if (material < 0 || static_cast<std::size_t>(material) >= model.materials.size()) {
       bad(file, "model: body " + std::to_string(i) + " has a material out of range");
     }
     if (kind == ShapeKind::sphere) {
       if (model.spheres.size() <= static_cast<std::size_t>(index))
         model.spheres.resize(static_cast<std::size_t>(index) + 1);
-      model.spheres[static_cast<std::size_t>(index)].radius = radius[i];
+      model.spheres[static_cast<std::size_t>(index)].radius = columns.radius[i];
     }
     model.shape_kind.push_back(kind);
     model.shape_index.push_back(static_cast<int>(index));
-    model.material.push_back(static_cast<int>(material[i]));
+    model.material.push_back(static_cast<int>(material));
     model.inverse_mass.push_back(model.mass[i] > 0.0 ? 1.0 / model.mass[i] : 0.0);
     model.inverse_inertia.push_back(model.mass[i] > 0.0 ? Vec3(model.principal_inertia[i].cwiseInverse())
                                                         : Vec3::Zero());
   }
+}
+
+Model read_model(hid_t root, const fs::path& file) {
+  Handle group = hdf5::open_group(root, "model", file);
+  const hid_t g = group.get();
+  Model model;
+  const BodyColumns columns = read_body_columns(g, model, file);
+  read_materials_and_laws(g, model, file);
+  read_polyhedra(g, model, file);
+  read_walls(g, model, file);
+  add_bodies(columns, model, file);
   return model;
 }
 
