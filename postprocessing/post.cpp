@@ -1,3 +1,6 @@
+// What post_process_run (post_run.cpp) and post_process_study (post_study_*.cpp) share, declared
+// in post_detail.hpp: the CSV writer, the output folder, the finiteness checks, running plots.py;
+// and plots_script(), where plots.py is found.
 #include "postprocessing/post.hpp"
 
 #include <array>
