@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

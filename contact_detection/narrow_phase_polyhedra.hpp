@@ -1,6 +1,6 @@
 #pragma once
 // Narrow phase involving convex polyhedra: common-plane method (Cundall 1988; the LMGC90 accretion paper, sec. 2.2).
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

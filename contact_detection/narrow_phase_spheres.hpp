@@ -1,6 +1,6 @@
 #pragma once
 // Narrow phase for spheres against spheres and walls (planes, boxes).
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

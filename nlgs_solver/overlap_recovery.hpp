@@ -10,7 +10,7 @@
 // velocities stay those of the non-smooth law: no kinetic energy is created, unlike a separation
 // velocity in the Signorini target (which turned a 4.4 m/s e_n = 0 impact into a 0.2-0.4 m/s
 // rebound and kept a pile of polyhedra from coming to rest).
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/integrator.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"

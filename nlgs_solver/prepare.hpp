@@ -6,7 +6,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 
 namespace rubble {

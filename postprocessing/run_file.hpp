@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <string_view>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/hdf5_io.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"

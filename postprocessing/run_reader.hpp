@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 

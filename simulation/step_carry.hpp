@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "contact_detection/contact.hpp"
+#include "core/contact.hpp"
 #include "contact_detection/detection.hpp"
 #include "core/math.hpp"
 

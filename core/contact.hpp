@@ -1,6 +1,7 @@
 #pragma once
 // A contact point between two bodies: what detection finds (point, frame, gap) and what the
-// solver works on (Delassus block, target velocity, impulse). One struct per contact point.
+// solver works on (Delassus block, target velocity, impulse). One struct per contact point. In core/
+// so that the solver and the post-processing use it without linking detection.
 #include <compare>
 #include <cstdint>
 #include <vector>
@@ -28,7 +29,7 @@ enum class ContactStatus : std::uint8_t {
 };
 
 /// One contact point. The local frame's first column is the normal n, pointing from body a to
-/// body b; local vectors are ordered (normal, t, s). Conventions (ARCHITECTURE.md): the gap is
+/// body b; local vectors are ordered (normal, t, s). Conventions (docs/architecture.md): the gap is
 /// positive when separated, the normal relative velocity U_n = n . (v_b(point) - v_a(point)) is
 /// positive when separating, and the impulse r is the impulse on body b over the step (N s);
 /// body a receives -r.
