@@ -1,0 +1,142 @@
+// Tests of the default scenes (simulation/scene_defaults.cpp) and the example files: the default
+// scene is the 1000-sphere accretion to rest and examples/accretion-1000*.toml hold its text, every
+// example parses, the study's files are their cases, the seed decides the grains.
+#include "simulation/run_control.hpp"
+#include "simulation/scene_file.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <numbers>
+
+#include "scene/scene_test_scenes.hpp"
+
+namespace rubble {
+namespace {
+
+using scene_test::cloud_scene;
+using scene_test::read_text;
+using scene_test::two_grains_in_a_box;
+
+TEST(DefaultScene, IsTheThousandSphereAccretionToRest) {
+  const Scene scene = default_scene();
+  EXPECT_EQ(scene.name, "accretion-1000");
+  ASSERT_EQ(scene.model.body_count(), 1000u);
+  EXPECT_EQ(scene.model.spheres.size(), 1000u);
+  EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::self);
+  EXPECT_EQ(scene.run.step.gravity.self_gravity.method, gravity::Method::tree);
+  EXPECT_TRUE(scene.run.automatic_time_step);
+  EXPECT_EQ(scene.run.step.integrator.time_step,
+            automatic_time_step(scene.model, scene.state, scene.run.step.gravity).time_step);
+  EXPECT_TRUE(scene.run.until_rest);
+  EXPECT_GT(scene.run.rest.speed, 0.0);
+  EXPECT_GT(scene.run.rest.duration, 0.0);
+  for (std::size_t i = 0; i < 1000; ++i) {
+    const double r = scene.model.sphere_radius(i);
+    EXPECT_GE(r, 3.75);
+    EXPECT_LE(r, 5.0);
+    EXPECT_LE(scene.state.position[i].cwiseAbs().maxCoeff() + r, 50.0 + 1e-9);
+    EXPECT_EQ(scene.state.velocity[i], Vec3::Zero());
+  }
+}
+
+TEST(DefaultScene, IsTheExampleFileAndLoadsFromIt) {
+  const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion-1000.toml";
+  EXPECT_EQ(read_text(example), default_scene_toml()) << "regenerate with: rubble run --print-default-scene > "
+                                                         "examples/accretion-1000.toml";
+  const Scene from_file = load_scene_file(example);
+  const Scene built_in = default_scene();
+  ASSERT_EQ(from_file.state.body_count(), built_in.state.body_count());
+  for (std::size_t i = 0; i < built_in.state.body_count(); ++i) {
+    EXPECT_EQ(from_file.state.position[i], built_in.state.position[i]);
+  }
+}
+
+// The polyhedra variant (`rubble run --default-scene polyhedra`): the same set-up, 1000 random
+// polyhedra (every grain a polyhedron, none a sphere), and the example file holds its text.
+TEST(DefaultScene, PolyhedraVariantIsTheExampleFileAndHoldsOnlyPolyhedra) {
+  const std::filesystem::path example = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion-1000-polyhedra.toml";
+  EXPECT_EQ(read_text(example), default_scene_toml(DefaultScene::polyhedra))
+      << "regenerate with: rubble run --default-scene polyhedra --print-default-scene > "
+         "examples/accretion-1000-polyhedra.toml";
+  const Scene scene = default_scene(DefaultScene::polyhedra);
+  const Scene spheres = default_scene();
+  std::size_t polyhedra = 0, grains = 0;
+  for (std::size_t b = 0; b < scene.model.body_count(); ++b) {
+    if (!scene.model.is_grain(b)) continue;
+    ++grains;
+    if (scene.model.shape_kind[b] == ShapeKind::polyhedron) ++polyhedra;
+  }
+  EXPECT_EQ(grains, 1000u);
+  EXPECT_EQ(polyhedra, grains);
+  EXPECT_EQ(scene.run.step.gravity.kind, spheres.run.step.gravity.kind);
+  EXPECT_EQ(scene.run.end_time, spheres.run.end_time);
+}
+
+TEST(Examples, EveryExampleFileParses) {
+  std::size_t count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(RUBBLE_EXAMPLES_DIR)) {
+    if (entry.path().extension() != ".toml") continue;
+    ++count;
+    EXPECT_NO_THROW({
+      const Scene scene = load_scene_file(entry.path());
+      EXPECT_GT(scene.model.body_count(), 0u);
+    }) << entry.path();
+  }
+  EXPECT_GE(count, 2u);
+}
+
+// examples/accretion/: the study's sets (the LMGC90 accretion paper), each file what its name says: spheres-N,
+// polyhedra-N (N grains on the cubic grid of mesh 10 m), spheres-3375-muM (friction M), all with
+// density 5164, diameters in [7.5, 10] m, mu = 0 unless named, dt = "auto", until = "rest".
+TEST(Examples, AccretionStudyFilesAreTheirCases) {
+  std::size_t files = 0;
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "accretion")) {
+    if (entry.path().extension() != ".toml") continue;
+    ++files;
+    const std::string stem = entry.path().stem().string();
+    SCOPED_TRACE(stem);
+    const Scene scene = load_scene_file(entry.path());
+    const bool polyhedra = stem.rfind("polyhedra-", 0) == 0;
+    const std::size_t dash = stem.find('-');
+    const std::size_t count = std::stoul(stem.substr(dash + 1));
+    const std::size_t mu_at = stem.find("-mu");
+    const double mu = mu_at == std::string::npos ? 0.0 : std::stod(stem.substr(mu_at + 3));
+    EXPECT_EQ(scene.name, stem);
+    ASSERT_EQ(scene.model.body_count(), count);
+    EXPECT_EQ(polyhedra ? scene.model.polyhedra.size() : scene.model.spheres.size(), count);
+    EXPECT_EQ(scene.model.materials.at(0).density, 5164.0);
+    EXPECT_EQ(scene.model.contact_laws.get(0, 0).friction_coefficient, mu);
+    EXPECT_EQ(scene.model.contact_laws.get(0, 0).normal_restitution, 0.0);
+    EXPECT_TRUE(scene.run.automatic_time_step);
+    EXPECT_TRUE(scene.run.until_rest);
+    EXPECT_EQ(scene.run.step.gravity.kind, GravitySettings::Kind::self);
+    const double k = std::round(std::cbrt(static_cast<double>(count)));
+    for (std::size_t b = 0; b < count; ++b) {
+      EXPECT_LE(scene.state.position[b].cwiseAbs().maxCoeff(), 5.0 * k);
+      if (!polyhedra) {
+        EXPECT_GE(scene.model.sphere_radius(b), 3.75);
+        EXPECT_LE(scene.model.sphere_radius(b), 5.0);
+      }
+    }
+  }
+  EXPECT_EQ(files, 18u);  // 7 sphere sets, 5 polyhedra sets, 6 friction values
+}
+
+TEST(DefaultScene, SameSeedSameGrainsOtherSeedOtherGrains) {
+  std::string text = default_scene_toml();
+  const Scene a = parse_scene(text, "a.toml");
+  const Scene b = parse_scene(text, "b.toml");
+  text.replace(text.find("seed = 1"), 8, "seed = 2");
+  const Scene c = parse_scene(text, "c.toml");
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < 1000; ++i) {
+    EXPECT_EQ(a.state.position[i], b.state.position[i]);
+    differing += a.state.position[i] != c.state.position[i] ? 1 : 0;
+  }
+  EXPECT_EQ(differing, 1000u);
+}
+}  // namespace
+}  // namespace rubble
