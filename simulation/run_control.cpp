@@ -9,25 +9,30 @@
 namespace rubble {
 
 namespace {
-constexpr double infinity = std::numeric_limits<double>::infinity();
-}  // namespace
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-SceneScales scene_scales(const Model& model, const State& state, const GravitySettings& gravity) {
-  SceneScales scales;
-  Vec3 weighted = Vec3::Zero();
+constexpr double infinity = std::numeric_limits<double>::infinity();
+
+/// What scene_scales gathers over the moving grains before it knows their centre.
+struct GrainTotals {
+  Vec3 weighted = Vec3::Zero();  ///< sum of m x
   double volume = 0.0;
-  double max_speed = 0.0;
+  double max_speed = 0.0;  ///< fastest grain, or fastest prescribed speed of a driven body
+};
+
+/// Counts, mass, volume, d_min and the fastest speed of the moving grains (into `scales`), and
+/// the driven bodies' fastest prescribed speeds.
+GrainTotals grain_totals(const Model& model, const State& state, SceneScales& scales) {
+  GrainTotals totals;
   scales.min_diameter = infinity;
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_grain(b) || model.is_fixed(b)) continue;
     ++scales.grains;
     scales.has_polyhedra = scales.has_polyhedra || model.shape_kind[b] == ShapeKind::polyhedron;
     scales.total_mass += model.mass[b];
-    weighted += model.mass[b] * state.position[b];
-    volume += model.volume[b];
+    totals.weighted += model.mass[b] * state.position[b];
+    totals.volume += model.volume[b];
     scales.min_diameter = std::min(scales.min_diameter, 2.0 * model.bounding_radius[b]);
-    max_speed = std::max(max_speed, state.velocity[b].norm());
+    totals.max_speed = std::max(totals.max_speed, state.velocity[b].norm());
   }
   // A driven body moves grains as fast as it goes: its fastest prescribed speed at any knot (a
   // turning grain's or box's rim included; a turning plane has no rim) counts as a grain's.
@@ -35,17 +40,17 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
     const PrescribedMotion& motion = model.prescribed_motions[static_cast<std::size_t>(model.motion_of_body[b])];
     const double rim = std::isfinite(model.bounding_radius[b]) ? model.bounding_radius[b] : 0.0;
     for (std::size_t k = 0; k < motion.time.size(); ++k) {
-      max_speed = std::max(max_speed, motion.velocity[k].norm() + rim * motion.angular_velocity[k].norm());
+      totals.max_speed =
+          std::max(totals.max_speed, motion.velocity[k].norm() + rim * motion.angular_velocity[k].norm());
     }
   }
-  if (scales.grains == 0) {
-    scales.min_diameter = 0.0;
-    scales.characteristic_time = infinity;
-    return scales;
-  }
-  scales.mean_mass = scales.total_mass / static_cast<double>(scales.grains);
-  scales.mean_density = volume > 0.0 ? scales.total_mass / volume : 0.0;
-  const Vec3 centre = weighted / scales.total_mass;
+  return totals;
+}
+
+/// The height of the grains along uniform gravity's direction (along z for other fields), m;
+/// sets `scales.cloud_radius` on the way.
+double grain_height(const Model& model, const State& state, const GravitySettings& gravity, const Vec3& centre,
+                    SceneScales& scales) {
   double low = infinity;
   double high = -infinity;
   const Vec3 down = gravity.kind == GravitySettings::Kind::uniform && gravity.acceleration.norm() > 0.0
@@ -57,7 +62,30 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
     low = std::min(low, down.dot(state.position[b]));
     high = std::max(high, down.dot(state.position[b]));
   }
+  return high - low;
+}
 
+/// v_ref and T of a central field: a grain falling from rest at the cloud's farthest point r0 to
+/// a grain radius from the centre (closer than that it meets other grains), in the softened
+/// field: energy conservation, v = sqrt(2 G M (1/sqrt(r1^2 + eps^2) - 1/sqrt(r0^2 + eps^2))).
+/// Time: the free-fall time scale sqrt(r0^3 / (G M)) (Kepler).
+void central_field_scales(const Model& model, const State& state, const CentralField& c, SceneScales& scales) {
+  double r0 = 0.0;
+  for (std::size_t b = 0; b < model.body_count(); ++b) {
+    if (model.is_grain(b) && !model.is_fixed(b)) r0 = std::max(r0, (state.position[b] - c.centre).norm());
+  }
+  const double r1 = std::min(0.5 * scales.min_diameter, r0);
+  const double eps2 = c.softening * c.softening;
+  const double GM = c.G * c.mass;
+  scales.reference_velocity =
+      std::sqrt(std::max(0.0, 2.0 * GM * (1.0 / std::sqrt(r1 * r1 + eps2) - 1.0 / std::sqrt(r0 * r0 + eps2))));
+  scales.characteristic_time = GM > 0.0 ? std::sqrt((r0 * r0 * r0 + eps2 * std::sqrt(eps2)) / GM) : infinity;
+}
+
+/// v_ref and T of the scene's gravity (docs/scene-file.md, "Automatic time step"); `height` is
+/// the grains' extent along uniform gravity, `max_speed` the fastest grain or driven body.
+void gravity_scales(const Model& model, const State& state, const GravitySettings& gravity, double height,
+                    double max_speed, SceneScales& scales) {
   switch (gravity.kind) {
     case GravitySettings::Kind::self: {
       // Escape velocity from the cloud's edge, sqrt(2GM/R): no grain falling from rest inside the
@@ -72,36 +100,38 @@ SceneScales scene_scales(const Model& model, const State& state, const GravitySe
       // A grain falling the height of the deposit (plus one grain) from rest: v = sqrt(2 g H),
       // in t = sqrt(2 H / g).
       const double g = gravity.acceleration.norm();
-      const double height = (high - low) + scales.min_diameter;
-      scales.reference_velocity = std::max(std::sqrt(2.0 * g * height), max_speed);
-      scales.characteristic_time = g > 0.0 ? std::sqrt(2.0 * height / g) : infinity;
+      const double fall = height + scales.min_diameter;
+      scales.reference_velocity = std::max(std::sqrt(2.0 * g * fall), max_speed);
+      scales.characteristic_time = g > 0.0 ? std::sqrt(2.0 * fall / g) : infinity;
       break;
     }
-    case GravitySettings::Kind::central: {
-      // A grain falling from rest at the cloud's farthest point r0 to a grain radius from the centre
-      // (closer than that it meets other grains), in the softened field: energy conservation,
-      // v = sqrt(2 G M (1/sqrt(r1^2 + eps^2) - 1/sqrt(r0^2 + eps^2))). Time: the free-fall time
-      // scale sqrt(r0^3 / (G M)) (Kepler).
-      const CentralField& c = gravity.central;
-      double r0 = 0.0;
-      for (std::size_t b = 0; b < model.body_count(); ++b) {
-        if (model.is_grain(b) && !model.is_fixed(b)) r0 = std::max(r0, (state.position[b] - c.centre).norm());
-      }
-      const double r1 = std::min(0.5 * scales.min_diameter, r0);
-      const double eps2 = c.softening * c.softening;
-      const double GM = c.G * c.mass;
-      scales.reference_velocity =
-          std::sqrt(std::max(0.0, 2.0 * GM * (1.0 / std::sqrt(r1 * r1 + eps2) - 1.0 / std::sqrt(r0 * r0 + eps2))));
-      scales.characteristic_time = GM > 0.0 ? std::sqrt((r0 * r0 * r0 + eps2 * std::sqrt(eps2)) / GM) : infinity;
+    case GravitySettings::Kind::central:
+      central_field_scales(model, state, gravity.central, scales);
       break;
-    }
     case GravitySettings::Kind::none:
       scales.reference_velocity = max_speed;
       scales.characteristic_time = max_speed > 0.0 ? scales.min_diameter / max_speed : infinity;
       break;
   }
+}
+
+}  // namespace
+
+SceneScales scene_scales(const Model& model, const State& state, const GravitySettings& gravity) {
+  SceneScales scales;
+  const GrainTotals totals = grain_totals(model, state, scales);
+  if (scales.grains == 0) {
+    scales.min_diameter = 0.0;
+    scales.characteristic_time = infinity;
+    return scales;
+  }
+  scales.mean_mass = scales.total_mass / static_cast<double>(scales.grains);
+  scales.mean_density = totals.volume > 0.0 ? scales.total_mass / totals.volume : 0.0;
+  const Vec3 centre = totals.weighted / scales.total_mass;
+  const double height = grain_height(model, state, gravity, centre, scales);
+  gravity_scales(model, state, gravity, height, totals.max_speed, scales);
   if (gravity.kind != GravitySettings::Kind::none) {
-    scales.reference_velocity = std::max(scales.reference_velocity, max_speed);
+    scales.reference_velocity = std::max(scales.reference_velocity, totals.max_speed);
   }
   scales.rest_reference_velocity = gravity.kind == GravitySettings::Kind::uniform
                                        ? std::sqrt(gravity.acceleration.norm() * scales.min_diameter)
