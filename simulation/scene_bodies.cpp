@@ -1,10 +1,13 @@
 // The scene file's [[walls]], [[bodies]] (spheres and polyhedra, driven ones with their prescribed
-// motion) and [[initial_conditions]] (docs/scene-file.md).
+// motion) and [[initial_conditions]] (docs/scene-file.md). Their keys are the tables of
+// scene_body_keys.cpp, which read the keys that set one member; here, those read by hand: the
+// material, the prescribed motion, a polyhedron's shape, an initial condition's selection.
 #include <filesystem>
 #include <limits>
 
 #include "preprocessing/packing.hpp"
 #include "preprocessing/polyhedron_file.hpp"
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_parser.hpp"
 
 namespace rubble::scene_detail {
@@ -167,37 +170,29 @@ ConvexPolyhedron random_polyhedron_body(const SceneDraft& draft, const TableRead
 /// faces, or random. position/orientation place the file's (or the listed vertices') frame;
 /// for a random polyhedron, they are the centroid and the principal frame.
 void parse_polyhedron_body(const SceneDraft& draft, const TableReader& entry, GrainSpec& grain) {
-  const std::vector<std::string_view> placement = {
-      "shape", "position", "orientation", "velocity", "angular_velocity", "material", "driven", "motion"};
-  const auto with = [&](std::initializer_list<std::string_view> more) {
-    std::vector<std::string_view> keys = placement;
-    keys.insert(keys.end(), more);
-    return keys;
-  };
   const int sources = (entry.has("file") ? 1 : 0) + (entry.has("vertices") ? 1 : 0) + (entry.has("diameter") ? 1 : 0);
   if (sources != 1) {
     entry.fail_table(sources == 0 ? "a polyhedron needs its shape: expected one of file = \"rock.obj\", vertices = "
                                     "[[x, y, z], ...] with faces, or diameter = D for a random one"
                                   : "expected only one of file, vertices and diameter");
   }
-  const Vec3 position = entry.vec3("position", coordinate());
-  const Quat orientation = entry.orientation_or_identity("orientation");
-  PolyhedronPose pose;  // the body frame in the frame the shape was given in
+  const std::string_view way = entry.has("file") ? "file" : entry.has("vertices") ? "vertices" : "diameter";
+  const auto& keys = polyhedron_body_keys(way);
+  read_section_keys(entry, keys, grain);  // position and orientation of the shape's frame
+  PolyhedronPose pose;                    // the body frame in the frame the shape was given in
   ConvexPolyhedron shape;
-  if (entry.has("file")) {
-    entry.allow_only(with({"file", "scale"}), "for a polyhedron read from a file");
+  if (way == "file") {
+    entry.allow_only(key_names(keys), "for a polyhedron read from a file");
     shape = polyhedron_from_file(draft, entry, pose);
-  } else if (entry.has("vertices")) {
-    entry.allow_only(with({"vertices", "faces", "convexity_tolerance"}), "for a polyhedron given by its vertices");
+  } else if (way == "vertices") {
+    entry.allow_only(key_names(keys), "for a polyhedron given by its vertices");
     shape = polyhedron_from_vertices(entry, pose);
   } else {
-    entry.allow_only(
-        with({"diameter", "shape_seed", "min_vertices", "max_vertices", "min_elongation", "min_platyness"}),
-        "for a random polyhedron");
+    entry.allow_only(key_names(keys), "for a random polyhedron");
     shape = random_polyhedron_body(draft, entry);
   }
-  grain.position = position + orientation * pose.centroid;
-  grain.orientation = (orientation * pose.orientation).normalized();
+  grain.position = grain.position + grain.orientation * pose.centroid;
+  grain.orientation = (grain.orientation * pose.orientation).normalized();
   grain.radius = shape.bounding_radius;
   grain.polyhedron = std::make_shared<const ConvexPolyhedron>(std::move(shape));
 }
@@ -206,14 +201,7 @@ void parse_polyhedron_body(const SceneDraft& draft, const TableReader& entry, Gr
 
 RandomPolyhedronOptions parse_random_polyhedron_options(const TableReader& entry) {
   RandomPolyhedronOptions options;
-  options.min_vertices = static_cast<int>(entry.integer_or("min_vertices", options.min_vertices, 4, 100'000));
-  options.max_vertices = static_cast<int>(entry.integer_or("max_vertices", options.max_vertices, 4, 100'000));
-  if (options.max_vertices < options.min_vertices) {
-    entry.fail_key("max_vertices", "expected max_vertices >= min_vertices (" + std::to_string(options.min_vertices) +
-                                       "), got " + std::to_string(options.max_vertices));
-  }
-  options.min_elongation = entry.number_or("min_elongation", options.min_elongation, Range{0.0, 1.0, false, true});
-  options.min_platyness = entry.number_or("min_platyness", options.min_platyness, Range{0.0, 1.0, false, true});
+  read_section_keys(entry, random_polyhedron_keys(), options);
   return options;
 }
 
@@ -231,26 +219,10 @@ void parse_walls(SceneDraft& draft) {
     wall.path = entry.path();
     wall.node = entry.anchor();
     const std::string type = entry.choice("type", {"plane", "box"});
-    if (type == "plane") {
-      entry.allow_only({"type", "point", "normal", "material", "velocity", "angular_velocity", "motion"},
-                       "for a wall of type = \"plane\"");
-      wall.is_plane = true;
-      wall.position = entry.vec3("point", coordinate());
-      const Vec3 normal = entry.vec3("normal");
-      const double norm = normal.stableNorm();  // the plain norm of [1e200, 0, 0] overflows
-      if (!(norm > 1e-12) || !std::isfinite(norm)) {
-        entry.fail_key("normal", "expected a nonzero vector (the side grains live on), got " + show_vec3(normal));
-      }
-      wall.normal = normal / norm;
-    } else {
-      entry.allow_only(
-          {"type", "center", "half_extents", "orientation", "material", "velocity", "angular_velocity", "motion"},
-          "for a wall of type = \"box\"");
-      wall.is_plane = false;
-      wall.position = entry.vec3("center", coordinate());
-      wall.half_extents = entry.vec3("half_extents", length());
-      wall.orientation = entry.orientation_or_identity("orientation");
-    }
+    const auto& keys = wall_keys(type);
+    entry.allow_only(key_names(keys), "for a wall of type = \"" + type + "\"");
+    wall.is_plane = type == "plane";
+    read_section_keys(entry, keys, wall);
     wall.material = material_of(draft, entry);
     // A wall moves when given a velocity, an angular velocity or a motion table.
     if (entry.has("motion") || entry.has("velocity") || entry.has("angular_velocity"))
@@ -268,12 +240,8 @@ void parse_bodies(SceneDraft& draft) {
     if (shape == "polyhedron") {
       parse_polyhedron_body(draft, entry, grain);
     } else {
-      entry.allow_only({"shape", "radius", "position", "orientation", "velocity", "angular_velocity", "material",
-                        "driven", "motion"},
-                       "for a body of shape = \"sphere\"");
-      grain.radius = entry.number("radius", positive());
-      grain.position = entry.vec3("position", coordinate());
-      grain.orientation = entry.orientation_or_identity("orientation");
+      entry.allow_only(key_names(sphere_body_keys()), "for a body of shape = \"sphere\"");
+      read_section_keys(entry, sphere_body_keys(), grain);
     }
     grain.velocity = entry.vec3_or("velocity", Vec3::Zero());
     grain.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
@@ -292,14 +260,12 @@ void parse_bodies(SceneDraft& draft) {
 
 void parse_initial_conditions(SceneDraft& draft) {
   for (const TableReader& entry : draft.root.tables("initial_conditions")) {
-    entry.allow_only({"velocity", "angular_velocity", "center", "material", "region_min", "region_max"},
-                     "in [[initial_conditions]]");
+    entry.allow_only(key_names(initial_condition_keys()), "in [[initial_conditions]]");
     if (!entry.has("velocity") && !entry.has("angular_velocity")) {
       entry.fail_table("expected velocity = [vx, vy, vz] (m/s) and/or angular_velocity = [wx, wy, wz] (rad/s)");
     }
     InitialCondition condition;
-    condition.velocity = entry.vec3_or("velocity", Vec3::Zero());
-    condition.angular_velocity = entry.vec3_or("angular_velocity", Vec3::Zero());
+    read_section_keys(entry, initial_condition_keys(), condition);
     condition.centre = entry.optional_vector<3>("center", coordinate());
     if (entry.has("material")) condition.material = material_of(draft, entry);
     if (entry.has("region_min") != entry.has("region_max")) {

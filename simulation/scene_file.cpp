@@ -5,9 +5,8 @@
 // the writer (scene_writer) and the built-in scenes (scene_defaults).
 #include "simulation/scene_file.hpp"
 
-#include <limits>
-
 #include "core/input_file.hpp"
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_parser.hpp"
 
 namespace rubble {
@@ -85,12 +84,9 @@ void build(SceneDraft& draft) {
 
 Scene parse(const std::string& file, const toml::table& root, const std::string& default_name) {
   SceneDraft draft(file, root);
-  draft.root.allow_only({"name", "seed", "time", "solver", "detection", "gravity", "output", "materials",
-                         "contact_laws", "default_contact_law", "walls", "bodies", "generators", "initial_conditions"},
-                        "at the top level");
-  draft.scene.name = draft.root.optional_string("name").value_or(default_name);
-  draft.scene.run.seed =
-      static_cast<std::uint64_t>(draft.root.integer_or("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+  draft.root.allow_only(key_names(top_level_keys()), "at the top level");
+  draft.scene.name = default_name;
+  read_section_keys(draft.root, top_level_keys(), draft.scene);
   parse_time(draft);
   parse_solver(draft);
   parse_detection(draft);

@@ -1,11 +1,14 @@
 // The scene file's [[generators]]: grains packed by preprocessing/packing.hpp (a box deposit, a
-// cubic grid or a spherical cloud), spheres, random polyhedra or a mix (docs/scene-file.md).
+// cubic grid or a spherical cloud), spheres, random polyhedra or a mix (docs/scene-file.md). The
+// keys a generator of each type and shape takes are the tables of scene_body_keys.cpp; they are
+// read here, by hand (they configure a packing, and check each other: sizes, regions, counts).
 #include <algorithm>
 #include <random>
 
 #include "preprocessing/grain_shapes.hpp"
 #include "preprocessing/packing.hpp"
 #include "simulation/memory_estimate.hpp"
+#include "simulation/scene_keys.hpp"
 #include "simulation/scene_parser.hpp"
 
 namespace rubble::scene_detail {
@@ -82,20 +85,11 @@ void check_memory(const SceneDraft& draft, const TableReader& entry, std::string
   if (!shortfall.empty()) entry.fail_key(key, shortfall);
 }
 
-/// The keys a generator of this type and shape takes, for the unknown-key check.
+/// The keys a generator of this type and shape takes (scene_keys.hpp), for the unknown-key check.
 std::vector<std::string_view> generator_keys(const std::string& type, const std::string& shape) {
-  std::vector<std::string_view> allowed = {"type",   "shape", "distribution",  "radius_min", "radius_max",
-                                           "radius", "bins",  "bin_fractions", "material",   "velocity"};
-  if (shape != "sphere") {
-    allowed.insert(allowed.end(), {"min_vertices", "max_vertices", "min_elongation", "min_platyness"});
-  }
-  if (shape == "mix") allowed.push_back("polyhedron_fraction");
-  if (type == "box_deposit") {
-    allowed.insert(allowed.end(), {"count", "region_min", "region_max", "cell_size"});
-  } else if (type == "cubic_grid") {
-    allowed.insert(allowed.end(), {"cells_per_side", "cell_size", "center"});
-  } else {
-    allowed.insert(allowed.end(), {"count", "center", "cloud_radius", "volume_fraction"});
+  std::vector<std::string_view> allowed = key_names(generator_common_keys());
+  for (const auto* more : {&generator_shape_keys(shape), &generator_type_keys(type)}) {
+    for (const std::string_view name : key_names(*more)) allowed.push_back(name);
   }
   return allowed;
 }

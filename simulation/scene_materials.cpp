@@ -1,5 +1,5 @@
 // The scene file's [[materials]], [default_contact_law] and [[contact_laws]] (docs/scene-file.md);
-// the keys of a contact law are read from their table (scene_keys.hpp).
+// the keys of a material and of a contact law are read from their tables (scene_keys.hpp).
 #include <array>
 
 #include "simulation/scene_keys.hpp"
@@ -48,15 +48,11 @@ std::array<int, 2> law_materials(const SceneDraft& draft, const TableReader& ent
 
 void parse_materials(SceneDraft& draft) {
   for (const TableReader& entry : draft.root.tables("materials")) {
-    entry.allow_only({"name", "density"}, "in [[materials]]");
-    const std::string name = entry.string("name");
-    if (name.empty()) entry.fail_key("name", "expected a nonempty material name");
-    if (draft.material_ids.count(name)) {
-      entry.fail_key("name", "material \"" + name + "\" is defined twice (expected unique names)");
-    }
-    const double density = entry.number("density", positive());
-    draft.material_ids[name] = static_cast<int>(draft.scene.model.materials.size());
-    draft.scene.model.materials.push_back(Material{name, density});
+    entry.allow_only(key_names(material_keys()), "in [[materials]]");
+    MaterialEntry material{.material = {}, .defined = &draft.material_ids};
+    read_section_keys(entry, material_keys(), material);
+    draft.material_ids[material.material.name] = static_cast<int>(draft.scene.model.materials.size());
+    draft.scene.model.materials.push_back(std::move(material.material));
   }
 }
 

@@ -50,6 +50,14 @@ std::string format_vec3(const Vec3& v) {
   return bracketed(format_number(v.x()), format_number(v.y()), format_number(v.z()));
 }
 
+std::string format_quaternion(const Quat& q) {
+  // Appended piece by piece: `"[" + std::string` trips GCC 12's -Wrestrict false positive here.
+  std::string text = "[";
+  text.append(format_number(q.w())).append(", ").append(format_number(q.x())).append(", ");
+  text.append(format_number(q.y())).append(", ").append(format_number(q.z())).append("]");
+  return text;
+}
+
 std::string toml_string(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {

@@ -31,6 +31,8 @@ std::string show_short(double x);
 std::string show_vec3(const Vec3& v);
 /// [x, y, z] as TOML floats.
 std::string format_vec3(const Vec3& v);
+/// [w, x, y, z] as TOML floats.
+std::string format_quaternion(const Quat& q);
 /// A string as a TOML basic string, quoted and escaped.
 std::string toml_string(const std::string& s);
 

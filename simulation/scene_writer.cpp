@@ -6,7 +6,6 @@
 
 #include "simulation/scene_file.hpp"
 #include "simulation/scene_keys.hpp"
-#include "simulation/scene_reader.hpp"
 
 namespace rubble {
 
@@ -14,7 +13,9 @@ namespace {
 
 using scene_detail::format_number;
 using scene_detail::format_vec3;
+using scene_detail::GrainSpec;
 using scene_detail::toml_string;
+using scene_detail::WallSpec;
 
 /// The keys of a driven body's prescribed motion (a constant one as velocity and
 /// angular_velocity, a table as motion = [[t, vx, vy, vz, wx, wy, wz], ...]), or of a free
@@ -42,80 +43,25 @@ std::string motion_keys(const Model& model, const State& state, std::size_t body
   return out + "\n]\n";
 }
 
-std::string toml_quaternion(const Quat& q) {
-  // Appended piece by piece: `"[" + std::string` trips GCC 12's -Wrestrict false positive here.
-  std::string text = "[";
-  text.append(format_number(q.w())).append(", ").append(format_number(q.x())).append(", ");
-  text.append(format_number(q.y())).append(", ").append(format_number(q.z())).append("]");
-  return text;
-}
-
-/// A number, or "auto" when the scene asked for the automatic value.
-std::string number_or_auto(bool automatic, double x) { return automatic ? std::string("\"auto\"") : format_number(x); }
-
-void write_time(std::ostream& out, const RunOptions& run) {
-  out << "[time]\n";
-  out << "dt = " << number_or_auto(run.automatic_time_step, run.step.integrator.time_step) << "\n";
-  out << "theta = " << format_number(run.step.integrator.theta) << "\n";
-  out << "end_time = " << format_number(run.end_time) << "\n";
-  if (run.until_rest) {
-    out << "until = \"rest\"\n";
-    out << "rest_speed = " << number_or_auto(run.automatic_rest_speed, run.rest.speed) << "\n";
-    out << "rest_quantile = " << format_number(run.rest.quantile) << "\n";
-    out << "rest_coordination_change = "
-        << number_or_auto(run.automatic_rest_coordination_change, run.rest.coordination_change) << "\n";
-    out << "rest_contact_change = " << format_number(run.rest.contact_change) << "\n";
-    out << "rest_duration = " << number_or_auto(run.automatic_rest_duration, run.rest.duration) << "\n";
-  }
-  out << "\n";
-}
-
-void write_self_gravity(std::ostream& out, const GravitySettings& gravity) {
-  const gravity::GravityOptions& self = gravity.self_gravity;
-  const bool tree = self.method == gravity::Method::tree;
-  out << "type = \"" << (tree ? "tree" : "direct") << "\"\n";
-  out << "G = " << format_number(self.G) << "\n";
-  out << "softening = "
-      << format_number(self.softening.kind == gravity::Softening::Kind::plummer ? self.softening.length : 0.0) << "\n";
-  if (tree) {
-    out << "theta = " << format_number(self.theta) << "\n";
-    out << "order = " << self.order << "\n";
-    out << "leaf_size = " << self.leaf_size << "\n";
-    out << "group_size = " << self.group_size << "\n";
-  }
-  if (self.backend != gravity::Backend::cpu) out << "backend = \"" << gravity::to_string(self.backend) << "\"\n";
-  if (gravity.evaluate_every != 1) out << "evaluate_every = " << gravity.evaluate_every << "\n";
-  out << "\n";
-}
-
-void write_gravity(std::ostream& out, const GravitySettings& gravity) {
-  out << "[gravity]\n";
+/// The [gravity] type whose keys `gravity` has.
+std::string_view gravity_type(const GravitySettings& gravity) {
   switch (gravity.kind) {
     case GravitySettings::Kind::none:
-      out << "type = \"none\"\n\n";
-      break;
+      return "none";
     case GravitySettings::Kind::uniform:
-      out << "type = \"uniform\"\nacceleration = " << format_vec3(gravity.acceleration) << "\n\n";
-      break;
+      return "uniform";
     case GravitySettings::Kind::self:
-      write_self_gravity(out, gravity);
+      return gravity.self_gravity.method == gravity::Method::tree ? "tree" : "direct";
+    case GravitySettings::Kind::central:
       break;
-    case GravitySettings::Kind::central: {
-      const CentralField& central = gravity.central;
-      out << "type = \"central\"\n";
-      out << "centre = " << format_vec3(central.centre) << "\n";
-      out << "mass = " << format_number(central.mass) << "\n";
-      out << "G = " << format_number(central.G) << "\n";
-      out << "softening = " << format_number(central.softening) << "\n\n";
-      break;
-    }
   }
+  return "central";
 }
 
 void write_materials_and_laws(std::ostream& out, const Model& model) {
   for (const Material& material : model.materials) {
-    out << "\n[[materials]]\nname = " << toml_string(material.name) << "\ndensity = " << format_number(material.density)
-        << "\n";
+    out << "\n[[materials]]\n";
+    scene_detail::write_section_keys(out, scene_detail::material_keys(), scene_detail::MaterialEntry{material});
   }
   const auto material_name = [&](int id) { return toml_string(model.materials[static_cast<std::size_t>(id)].name); };
   const int n = model.contact_laws.material_count;
@@ -133,9 +79,12 @@ void write_materials_and_laws(std::ostream& out, const Model& model) {
 /// merge angle, hence the convexity tolerance.
 void write_polyhedron(std::ostream& out, const Model& model, const State& state, std::size_t body) {
   const ConvexPolyhedron& shape = model.polyhedra[static_cast<std::size_t>(model.shape_index[body])];
-  out << "\n[[bodies]]\nshape = \"polyhedron\"\nposition = " << format_vec3(state.position[body])
-      << "\norientation = " << toml_quaternion(state.orientation[body]) << "\n"
-      << motion_keys(model, state, body) << "convexity_tolerance = 0.05\nvertices = [";
+  GrainSpec grain;
+  grain.position = state.position[body];
+  grain.orientation = state.orientation[body];
+  out << "\n[[bodies]]\n";
+  scene_detail::write_section_keys(out, scene_detail::polyhedron_body_keys("vertices"), grain);
+  out << motion_keys(model, state, body) << "convexity_tolerance = 0.05\nvertices = [";
   for (std::size_t v = 0; v < shape.vertices.size(); ++v) out << (v ? ", " : "") << format_vec3(shape.vertices[v]);
   out << "]\nfaces = [";
   for (std::size_t f = 0; f < shape.faces.size(); ++f) {
@@ -148,28 +97,32 @@ void write_polyhedron(std::ostream& out, const Model& model, const State& state,
 
 void write_body(std::ostream& out, const Model& model, const State& state, std::size_t body) {
   const auto index = static_cast<std::size_t>(model.shape_index[body]);
+  WallSpec wall;
+  wall.position = state.position[body];
+  wall.orientation = state.orientation[body];
   switch (model.shape_kind[body]) {
     case ShapeKind::plane:
-      out << "\n[[walls]]\ntype = \"plane\"\npoint = " << format_vec3(state.position[body])
-          << "\nnormal = " << format_vec3(state.orientation[body] * model.planes[index].normal) << "\n";
+      wall.normal = state.orientation[body] * model.planes[index].normal;
+      out << "\n[[walls]]\n";
+      scene_detail::write_section_keys(out, scene_detail::wall_keys("plane"), wall);
       out << motion_keys(model, state, body);
       break;
     case ShapeKind::box:
-      out << "\n[[walls]]\ntype = \"box\"\ncenter = " << format_vec3(state.position[body])
-          << "\nhalf_extents = " << format_vec3(model.boxes[index].half_extents) << "\n";
-      if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
-        out << "orientation = " << toml_quaternion(state.orientation[body]) << "\n";
-      }
+      wall.half_extents = model.boxes[index].half_extents;
+      out << "\n[[walls]]\n";
+      scene_detail::write_section_keys(out, scene_detail::wall_keys("box"), wall);
       out << motion_keys(model, state, body);
       break;
-    case ShapeKind::sphere:
-      out << "\n[[bodies]]\nshape = \"sphere\"\nradius = " << format_number(model.spheres[index].radius)
-          << "\nposition = " << format_vec3(state.position[body]);
-      if (state.orientation[body].coeffs() != Quat::Identity().coeffs()) {
-        out << "\norientation = " << toml_quaternion(state.orientation[body]);
-      }
-      out << "\n" << motion_keys(model, state, body);
+    case ShapeKind::sphere: {
+      GrainSpec grain;
+      grain.radius = model.spheres[index].radius;
+      grain.position = state.position[body];
+      grain.orientation = state.orientation[body];
+      out << "\n[[bodies]]\n";
+      scene_detail::write_section_keys(out, scene_detail::sphere_body_keys(), grain);
+      out << motion_keys(model, state, body);
       break;
+    }
     case ShapeKind::polyhedron:
       write_polyhedron(out, model, state, body);
       break;
@@ -184,16 +137,16 @@ std::string scene_to_toml(const Scene& scene) {
   const RunOptions& run = scene.run;
   std::ostringstream out;
   out << "# rubble scene file (written by rubble). Reference: docs/scene-file.md\n";
-  out << "name = " << toml_string(scene.name) << "\n";
-  out << "seed = " << static_cast<std::int64_t>(run.seed & 0x7FFFFFFFFFFFFFFFULL) << "\n\n";
-  write_time(out, run);
-  out << "[solver]\n";
+  scene_detail::write_section_keys(out, scene_detail::top_level_keys(), scene);
+  out << "\n[time]\n";
+  scene_detail::write_section_keys(out, scene_detail::time_keys(), run);
+  out << "\n[solver]\n";
   scene_detail::write_section_keys(out, scene_detail::solver_keys(), run.step.solver);
   out << "\n[detection]\n";
   scene_detail::write_section_keys(out, scene_detail::detection_keys(), run.step.detection);
-  out << "\n";
-  write_gravity(out, run.step.gravity);
-  out << "[output]\n";
+  out << "\n[gravity]\n";
+  scene_detail::write_section_keys(out, scene_detail::gravity_keys(gravity_type(run.step.gravity)), run.step.gravity);
+  out << "\n[output]\n";
   scene_detail::write_section_keys(out, scene_detail::output_keys(), run.output);
   write_materials_and_laws(out, model);
   for (std::size_t body = 0; body < model.body_count(); ++body) write_body(out, model, scene.state, body);
