@@ -189,6 +189,7 @@ TEST(SceneKeys, GravityTablesMatchTheDocs) {
   // of the types' tables (uniform, tree, direct, central), with its kind of value.
   const std::vector<DocRow> types = doc_rows("## `[gravity]`", "| `type` |");
   std::vector<std::string> documented_types;
+  documented_types.reserve(types.size());
   for (const DocRow& row : types) documented_types.push_back(row.key);
   std::vector<std::string> code_types;
   for (const std::string_view type : scene_detail::gravity_types())
