@@ -117,9 +117,13 @@ std::string locate_failure(const Model& model, const State& before, const StepWo
 void check_mass_properties(const Model& model) {
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_grain(b)) continue;
-    const bool ok = std::isfinite(model.mass[b]) && model.mass[b] > 0.0 && model.inverse_mass[b] > 0.0 &&
-                    std::isfinite(model.inverse_mass[b]) && model.principal_inertia[b].allFinite() &&
-                    (model.principal_inertia[b].array() > 0.0).all() && std::isfinite(model.bounding_radius[b]);
+    // A driven grain has zero inverse mass and inertia by design (drive_body, core/model.hpp): only
+    // its size can be out of range.
+    const bool mass_ok =
+        model.is_driven(b) || (std::isfinite(model.mass[b]) && model.mass[b] > 0.0 && model.inverse_mass[b] > 0.0 &&
+                               std::isfinite(model.inverse_mass[b]) && model.principal_inertia[b].allFinite() &&
+                               (model.principal_inertia[b].array() > 0.0).all());
+    const bool ok = mass_ok && std::isfinite(model.bounding_radius[b]);
     if (!ok) {
       throw std::invalid_argument(fmt::format(
           "body {} (a grain): mass {} kg, principal inertia ({}, {}, {}) kg m^2, bounding radius {} m: expected "
