@@ -205,15 +205,9 @@ Handle open_for_reading(const std::filesystem::path& file) {
   return handle;
 }
 
-}  // namespace
-
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* info) {
-  const QuietHdf5 quiet;
-  const Handle handle = open_for_reading(file);
-  const Reader reader{file.string(), handle.get()};
-  if (!reader.exists("/fclib_local")) reader.fail("/fclib_local", "missing group (not an FCLib local problem)");
-
+/// /fclib_local/vectors: q (3 per contact) and mu (one per contact, >= 0), checked against each
+/// other; spacedim (3 when absent) is checked first.
+LocalProblem read_vectors(const Reader& reader) {
   const std::int64_t spacedim = reader.exists("/fclib_local/spacedim") ? reader.scalar("/fclib_local/spacedim") : 3;
   if (spacedim != 3)
     reader.fail("/fclib_local/spacedim", "expected 3 (3D contacts), found " + std::to_string(spacedim));
@@ -230,63 +224,107 @@ LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* 
   for (std::size_t k = 0; k < contacts; ++k) {
     if (problem.mu[k] < 0.0) reader.fail("/fclib_local/vectors/mu", "entry " + std::to_string(k) + " is negative");
   }
+  return problem;
+}
 
-  const std::int64_t m = reader.scalar("/fclib_local/W/m");
-  const std::int64_t n = reader.scalar("/fclib_local/W/n");
-  const std::int64_t nz = reader.scalar("/fclib_local/W/nz");
+/// /fclib_local/W as stored: its shape m x n, the storage code nz and the arrays p, i, x.
+struct StoredMatrix {
+  std::int64_t m = 0;   ///< rows
+  std::int64_t n = 0;   ///< columns
+  std::int64_t nz = 0;  ///< -2 compressed row, -1 compressed column, >= 0 triplet (entry count)
+  std::vector<std::int64_t> p, i;
+  std::vector<double> x;
+};
+
+/// Reads /fclib_local/W: a 3 nc x 3 nc matrix (3 rows per contact), as many i as x.
+StoredMatrix read_stored_matrix(const Reader& reader, std::size_t contacts) {
+  StoredMatrix W;
+  W.m = reader.scalar("/fclib_local/W/m");
+  W.n = reader.scalar("/fclib_local/W/n");
+  W.nz = reader.scalar("/fclib_local/W/nz");
   const auto size = static_cast<std::int64_t>(3 * contacts);
-  if (m != size || n != size) {
+  if (W.m != size || W.n != size) {
     reader.fail("/fclib_local/W", "expected a " + std::to_string(size) + " x " + std::to_string(size) +
-                                      " matrix (3 rows per contact), found m = " + std::to_string(m) +
-                                      ", n = " + std::to_string(n));
+                                      " matrix (3 rows per contact), found m = " + std::to_string(W.m) +
+                                      ", n = " + std::to_string(W.n));
   }
-  const std::vector<std::int64_t> p = reader.integers("/fclib_local/W/p");
-  const std::vector<std::int64_t> i = reader.integers("/fclib_local/W/i");
-  const std::vector<double> x = reader.doubles("/fclib_local/W/x");
-  if (i.size() != x.size()) {
+  W.p = reader.integers("/fclib_local/W/p");
+  W.i = reader.integers("/fclib_local/W/i");
+  W.x = reader.doubles("/fclib_local/W/x");
+  if (W.i.size() != W.x.size()) {
     reader.fail("/fclib_local/W/i",
-                "i has " + std::to_string(i.size()) + " entries but x has " + std::to_string(x.size()));
+                "i has " + std::to_string(W.i.size()) + " entries but x has " + std::to_string(W.x.size()));
   }
+  return W;
+}
 
-  std::vector<std::tuple<int, int, double>> entries;
-  SparseStorage storage;
-  auto check_index = [&](std::int64_t value, std::int64_t bound, const char* dataset, std::size_t entry) {
-    if (value < 0 || value >= bound) {
-      reader.fail(dataset, "entry " + std::to_string(entry) + " = " + std::to_string(value) + " is outside [0, " +
-                               std::to_string(bound) + ")");
-    }
-  };
-  if (nz == -2 || nz == -1) {
-    storage = nz == -2 ? SparseStorage::compressed_row : SparseStorage::compressed_column;
-    const std::int64_t outer = nz == -2 ? m : n;
-    const std::int64_t inner = nz == -2 ? n : m;
-    check_pointers(reader, p, static_cast<std::size_t>(outer) + 1, i.size(), nz == -2 ? "row" : "column");
-    for (std::int64_t o = 0; o < outer; ++o) {
-      for (std::int64_t e = p[static_cast<std::size_t>(o)]; e < p[static_cast<std::size_t>(o) + 1]; ++e) {
-        const auto entry = static_cast<std::size_t>(e);
-        check_index(i[entry], inner, "/fclib_local/W/i", entry);
-        const auto a = static_cast<int>(o), b = static_cast<int>(i[entry]);
-        entries.emplace_back(nz == -2 ? a : b, nz == -2 ? b : a, x[entry]);
-      }
-    }
-  } else if (nz >= 0) {
-    storage = SparseStorage::triplet;
-    const auto count = static_cast<std::size_t>(nz);
-    if (i.size() < count || p.size() < count) {
-      reader.fail("/fclib_local/W", "triplet form with nz = " + std::to_string(nz) +
-                                        " needs that many entries in i, p and x, found " +
-                                        std::to_string(std::min(i.size(), p.size())));
-    }
-    for (std::size_t e = 0; e < count; ++e) {
-      check_index(i[e], m, "/fclib_local/W/i", e);
-      check_index(p[e], n, "/fclib_local/W/p", e);
-      entries.emplace_back(static_cast<int>(i[e]), static_cast<int>(p[e]), x[e]);
-    }
-  } else {
-    reader.fail("/fclib_local/W/nz",
-                "expected -2 (compressed row), -1 (compressed column) or >= 0 (triplet), found " + std::to_string(nz));
+/// W's entries as (row, column, value), in the order stored.
+using MatrixEntries = std::vector<std::tuple<int, int, double>>;
+
+/// Checks that entry `entry` of an index array lies in [0, bound).
+void check_index(const Reader& reader, std::int64_t value, std::int64_t bound, const char* dataset, std::size_t entry) {
+  if (value < 0 || value >= bound) {
+    reader.fail(dataset, "entry " + std::to_string(entry) + " = " + std::to_string(value) + " is outside [0, " +
+                             std::to_string(bound) + ")");
   }
-  problem.W = compress_rows(static_cast<int>(m), static_cast<int>(n), std::move(entries));
+}
+
+/// The entries of W stored compressed by row (nz = -2) or by column (nz = -1).
+MatrixEntries compressed_entries(const Reader& reader, const StoredMatrix& W) {
+  const bool by_row = W.nz == -2;
+  const std::int64_t outer = by_row ? W.m : W.n;
+  const std::int64_t inner = by_row ? W.n : W.m;
+  check_pointers(reader, W.p, static_cast<std::size_t>(outer) + 1, W.i.size(), by_row ? "row" : "column");
+  MatrixEntries entries;
+  for (std::int64_t o = 0; o < outer; ++o) {
+    for (std::int64_t e = W.p[static_cast<std::size_t>(o)]; e < W.p[static_cast<std::size_t>(o) + 1]; ++e) {
+      const auto entry = static_cast<std::size_t>(e);
+      check_index(reader, W.i[entry], inner, "/fclib_local/W/i", entry);
+      const auto a = static_cast<int>(o), b = static_cast<int>(W.i[entry]);
+      entries.emplace_back(by_row ? a : b, by_row ? b : a, W.x[entry]);
+    }
+  }
+  return entries;
+}
+
+/// The entries of W stored as nz >= 0 triplets (i = row, p = column).
+MatrixEntries triplet_entries(const Reader& reader, const StoredMatrix& W) {
+  const auto count = static_cast<std::size_t>(W.nz);
+  if (W.i.size() < count || W.p.size() < count) {
+    reader.fail("/fclib_local/W", "triplet form with nz = " + std::to_string(W.nz) +
+                                      " needs that many entries in i, p and x, found " +
+                                      std::to_string(std::min(W.i.size(), W.p.size())));
+  }
+  MatrixEntries entries;
+  for (std::size_t e = 0; e < count; ++e) {
+    check_index(reader, W.i[e], W.m, "/fclib_local/W/i", e);
+    check_index(reader, W.p[e], W.n, "/fclib_local/W/p", e);
+    entries.emplace_back(static_cast<int>(W.i[e]), static_cast<int>(W.p[e]), W.x[e]);
+  }
+  return entries;
+}
+
+}  // namespace
+
+LocalProblem read_fclib_local(const std::filesystem::path& file, FclibFileInfo* info) {
+  const QuietHdf5 quiet;
+  const Handle handle = open_for_reading(file);
+  const Reader reader{file.string(), handle.get()};
+  if (!reader.exists("/fclib_local")) reader.fail("/fclib_local", "missing group (not an FCLib local problem)");
+  LocalProblem problem = read_vectors(reader);
+  const StoredMatrix W = read_stored_matrix(reader, problem.mu.size());
+  MatrixEntries entries;
+  SparseStorage storage = SparseStorage::triplet;
+  if (W.nz == -2 || W.nz == -1) {
+    storage = W.nz == -2 ? SparseStorage::compressed_row : SparseStorage::compressed_column;
+    entries = compressed_entries(reader, W);
+  } else if (W.nz >= 0) {
+    entries = triplet_entries(reader, W);
+  } else {
+    reader.fail("/fclib_local/W/nz", "expected -2 (compressed row), -1 (compressed column) or >= 0 (triplet), found " +
+                                         std::to_string(W.nz));
+  }
+  problem.W = compress_rows(static_cast<int>(W.m), static_cast<int>(W.n), std::move(entries));
   if (info != nullptr) {
     info->title = reader.text("/fclib_local/info/title");
     info->description = reader.text("/fclib_local/info/description");
