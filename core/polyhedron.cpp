@@ -181,33 +181,28 @@ PolyhedronMassProperties mass_properties(const std::vector<Vec3>& vertices, cons
   return out;
 }
 
-}  // namespace
-
-PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
-                                                    const std::vector<std::vector<int>>& faces) {
-  return mass_properties(vertices, faces);
-}
-
-PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices, const IndexLists& faces) {
-  return mass_properties(vertices, faces);
-}
-
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
-                                        const PolyhedronBuildOptions& options, PolyhedronPose* pose) {
+/// The checks that need no geometry: at least 4 vertices and 4 faces, every index in range,
+/// every coordinate finite.
+void check_counts(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces) {
   if (vertices.size() < 4) fail("needs at least 4 vertices, got " + std::to_string(vertices.size()));
   if (faces.size() < 4) fail("needs at least 4 faces, got " + std::to_string(faces.size()));
   check_indices(vertices, faces);
   for (const Vec3& v : vertices) {
     if (!v.allFinite()) fail("a vertex coordinate is not finite");  // checked by readers first
   }
+}
 
-  // --- topology: every directed edge once, its reverse once (closed, oriented 2-manifold) ---
-  struct DirectedEdge {
-    int from, to, face;
-  };
+/// An edge of a face, in the face's (counter-clockwise) order.
+struct DirectedEdge {
+  int from, to, face;
+};
+
+/// Every directed edge of the faces, sorted by (from, to). Fails on a face that repeats a vertex,
+/// a vertex on no face, and an edge used twice in the same direction (inconsistent orientation or
+/// non-manifold).
+std::vector<DirectedEdge> sorted_directed_edges(std::size_t vertex_count, const std::vector<std::vector<int>>& faces) {
   std::vector<DirectedEdge> directed;
-  std::vector<char> used(vertices.size(), 0);
+  std::vector<char> used(vertex_count, 0);
   for (std::size_t f = 0; f < faces.size(); ++f) {
     const auto& face = faces[f];
     for (std::size_t i = 0; i < face.size(); ++i) {
@@ -219,7 +214,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
       used[static_cast<std::size_t>(from)] = 1;
     }
   }
-  for (std::size_t v = 0; v < vertices.size(); ++v) {
+  for (std::size_t v = 0; v < vertex_count; ++v) {
     if (!used[v]) fail("vertex " + std::to_string(v) + " is on no face", -1, static_cast<int>(v));
   }
   std::sort(directed.begin(), directed.end(), [](const DirectedEdge& x, const DirectedEdge& y) {
@@ -233,6 +228,18 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
            directed[i].face);
     }
   }
+  return directed;
+}
+
+/// The undirected edges (i < j) and the two faces of each.
+struct MeshEdges {
+  std::vector<std::pair<int, int>> edges;       ///< vertex pairs, i < j
+  std::vector<std::pair<int, int>> edge_faces;  ///< the face of i -> j, then the face of j -> i
+};
+
+/// Pairs every directed edge with its reverse: the surface is a closed, oriented 2-manifold when
+/// each has one, and a sphere when V - E + F = 2 (Euler). Fails otherwise.
+MeshEdges paired_edges(const std::vector<DirectedEdge>& directed, std::size_t vertex_count, std::size_t face_count) {
   auto find_directed = [&](int from, int to) -> const DirectedEdge* {
     auto it = std::lower_bound(directed.begin(), directed.end(), std::make_pair(from, to),
                                [](const DirectedEdge& e, const std::pair<int, int>& key) {
@@ -240,8 +247,7 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
                                });
     return (it != directed.end() && it->from == from && it->to == to) ? &*it : nullptr;
   };
-  std::vector<std::pair<int, int>> edges;
-  std::vector<std::pair<int, int>> edge_faces;
+  MeshEdges out;
   for (const DirectedEdge& e : directed) {
     const DirectedEdge* reverse = find_directed(e.to, e.from);
     if (reverse == nullptr) {
@@ -250,15 +256,27 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
            e.face);
     }
     if (e.from < e.to) {
-      edges.emplace_back(e.from, e.to);
-      edge_faces.emplace_back(e.face, reverse->face);
+      out.edges.emplace_back(e.from, e.to);
+      out.edge_faces.emplace_back(e.face, reverse->face);
     }
   }
   const long euler =
-      static_cast<long>(vertices.size()) - static_cast<long>(edges.size()) + static_cast<long>(faces.size());
+      static_cast<long>(vertex_count) - static_cast<long>(out.edges.size()) + static_cast<long>(face_count);
   if (euler != 2) fail("Euler characteristic V - E + F = " + std::to_string(euler) + ", expected 2 (a sphere)");
+  return out;
+}
 
-  // --- mass properties, body frame ---
+/// Volume and principal inertia per density of the solid, once in its body frame.
+struct BodyFrameMass {
+  double volume = 0.0;                                ///< m^3
+  Vec3 principal_inertia_per_density = Vec3::Zero();  ///< m^5
+};
+
+/// Moves `vertices` to the body frame (centroid at the origin, principal axes of inertia along
+/// x, y, z) and sets `pose` (when given) to that frame's pose in the input's. The mass properties
+/// come from `options.mass_faces` when given. Fails on a flat, empty or inside-out solid.
+BodyFrameMass move_to_body_frame(std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces,
+                                 const PolyhedronBuildOptions& options, PolyhedronPose* pose) {
   const PolyhedronMassProperties mass =
       polyhedron_mass_properties(vertices, options.mass_faces.empty() ? faces : options.mass_faces);
   double extent = 0.0;
@@ -274,15 +292,11 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     pose->centroid = mass.centroid;
     pose->orientation = Quat(axes).normalized();
   }
+  return {mass.volume, principal.diagonal()};
+}
 
-  ConvexPolyhedron shape;
-  shape.vertices = std::move(vertices);
-  shape.faces = IndexLists(faces);
-  faces = {};  // the nested copy is no longer needed
-  shape.edges = std::move(edges);
-  shape.edge_faces = std::move(edge_faces);
-  shape.volume = mass.volume;
-  shape.principal_inertia_per_density = principal.diagonal();
+/// The bounding sphere (about the origin) and the axis-aligned bounding box of the vertices.
+void set_bounds(ConvexPolyhedron& shape) {
   shape.bounding_radius = 0.0;
   shape.box_min = Vec3::Constant(std::numeric_limits<double>::infinity());
   shape.box_max = -shape.box_min;
@@ -291,65 +305,70 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     shape.box_min = shape.box_min.cwiseMin(v);
     shape.box_max = shape.box_max.cwiseMax(v);
   }
-  const double tolerance = options.convexity_tolerance * 2.0 * shape.bounding_radius;
+}
 
-  // --- faces: normals, convexity, supporting planes ---
-  // Every vertex must lie below every face's plane. Large meshes find each face's highest vertex
-  // on the convex hull instead of scanning all vertices (O(V log V) instead of O(F V): 10^5
-  // vertices: 61 s of CPU, now 2.4 s, bench/RESULTS.md); the check and the offsets are the same.
-  const bool use_hull = shape.vertices.size() >= hull_check_min_vertices;
-  const HullGraph hull = use_hull ? hull_graph(shape.vertices) : HullGraph{};
-  shape.face_normals.reserve(shape.faces.size());
-  shape.face_offsets.reserve(shape.faces.size());
-  for (std::size_t f = 0; f < shape.faces.size(); ++f) {
-    const auto& face = shape.faces[f];
-    const Vec3 area_normal = newell_normal(shape.vertices, face);
-    if (!(area_normal.norm() > 1e-14 * shape.bounding_radius * shape.bounding_radius)) {
-      fail("face " + std::to_string(f) + " has zero area", static_cast<int>(f));
+/// Checks that face f, of unit normal n and mean height `own` along it, is planar and a convex
+/// polygon (it turns left at every corner seen from outside), within `tolerance` (m).
+void check_face_polygon(const ConvexPolyhedron& shape, std::size_t f, const Vec3& n, double own, double tolerance) {
+  const auto& face = shape.faces[f];
+  for (std::size_t i = 0; i < face.size(); ++i) {
+    const Vec3& p = shape.vertices[static_cast<std::size_t>(face[i])];
+    const Vec3& q = shape.vertices[static_cast<std::size_t>(face[(i + 1) % face.size()])];
+    const Vec3& r = shape.vertices[static_cast<std::size_t>(face[(i + 2) % face.size()])];
+    if (n.dot(p) < own - tolerance) {
+      fail("face " + std::to_string(f) + " is not planar: vertex " + std::to_string(face[i]) + " is " +
+               std::to_string(own - n.dot(p)) + " m below its plane",
+           static_cast<int>(f));
     }
-    const Vec3 n = area_normal.normalized();
-    double own = 0.0;
-    for (int v : face) own += n.dot(shape.vertices[static_cast<std::size_t>(v)]);
-    own /= static_cast<double>(face.size());
-    double offset = -std::numeric_limits<double>::infinity();
-    const auto check_vertex = [&](std::size_t v) {
-      const double h = n.dot(shape.vertices[v]);
-      if (h > own + tolerance) {
-        fail("not convex: vertex " + std::to_string(v) + " lies " + std::to_string(h - own) +
-                 " m outside the plane of face " + std::to_string(f),
-             static_cast<int>(f), static_cast<int>(v));
-      }
-      offset = std::max(offset, h);
-    };
-    if (use_hull) {
-      // The highest vertex of all is a hull vertex; the face's own vertices count too (one may
-      // be off the hull by round-off yet highest by it).
-      check_vertex(static_cast<std::size_t>(highest_vertex(hull, shape.vertices, n, face[0])));
-      for (int v : face) check_vertex(static_cast<std::size_t>(v));
-    } else {
-      for (std::size_t v = 0; v < shape.vertices.size(); ++v) check_vertex(v);
+    if (n.dot((q - p).cross(r - q)) < -tolerance * (q - p).norm()) {
+      fail("face " + std::to_string(f) + " is not a convex polygon at vertex " +
+               std::to_string(face[(i + 1) % face.size()]),
+           static_cast<int>(f));
     }
-    for (std::size_t i = 0; i < face.size(); ++i) {
-      const Vec3& p = shape.vertices[static_cast<std::size_t>(face[i])];
-      const Vec3& q = shape.vertices[static_cast<std::size_t>(face[(i + 1) % face.size()])];
-      const Vec3& r = shape.vertices[static_cast<std::size_t>(face[(i + 2) % face.size()])];
-      if (n.dot(p) < own - tolerance) {
-        fail("face " + std::to_string(f) + " is not planar: vertex " + std::to_string(face[i]) + " is " +
-                 std::to_string(own - n.dot(p)) + " m below its plane",
-             static_cast<int>(f));
-      }
-      // A convex face turns left at every corner (seen from outside).
-      if (n.dot((q - p).cross(r - q)) < -tolerance * (q - p).norm()) {
-        fail("face " + std::to_string(f) + " is not a convex polygon at vertex " +
-                 std::to_string(face[(i + 1) % face.size()]),
-             static_cast<int>(f));
-      }
-    }
-    shape.face_normals.push_back(n);
-    shape.face_offsets.push_back(offset);
   }
+}
 
-  // Vertex neighbours in edge order (i gets j, j gets i), filled into the flat lists in two passes.
+/// Appends face f's unit normal (Newell) and supporting-plane offset (the highest n . v over all
+/// vertices) to the shape, after checking that the face has an area, that no vertex lies above its
+/// plane by more than `tolerance` (convexity) and that the face is a planar convex polygon.
+/// With `use_hull`, the highest vertex is found by walking uphill on `hull` instead of scanning all
+/// vertices (large meshes; the check and the offset are the same).
+void add_face_plane(ConvexPolyhedron& shape, std::size_t f, const HullGraph& hull, bool use_hull, double tolerance) {
+  const auto& face = shape.faces[f];
+  const Vec3 area_normal = newell_normal(shape.vertices, face);
+  if (!(area_normal.norm() > 1e-14 * shape.bounding_radius * shape.bounding_radius)) {
+    fail("face " + std::to_string(f) + " has zero area", static_cast<int>(f));
+  }
+  const Vec3 n = area_normal.normalized();
+  double own = 0.0;
+  for (int v : face) own += n.dot(shape.vertices[static_cast<std::size_t>(v)]);
+  own /= static_cast<double>(face.size());
+  double offset = -std::numeric_limits<double>::infinity();
+  const auto check_vertex = [&](std::size_t v) {
+    const double h = n.dot(shape.vertices[v]);
+    if (h > own + tolerance) {
+      fail("not convex: vertex " + std::to_string(v) + " lies " + std::to_string(h - own) +
+               " m outside the plane of face " + std::to_string(f),
+           static_cast<int>(f), static_cast<int>(v));
+    }
+    offset = std::max(offset, h);
+  };
+  if (use_hull) {
+    // The highest vertex of all is a hull vertex; the face's own vertices count too (one may
+    // be off the hull by round-off yet highest by it).
+    check_vertex(static_cast<std::size_t>(highest_vertex(hull, shape.vertices, n, face[0])));
+    for (int v : face) check_vertex(static_cast<std::size_t>(v));
+  } else {
+    for (std::size_t v = 0; v < shape.vertices.size(); ++v) check_vertex(v);
+  }
+  check_face_polygon(shape, f, n, own, tolerance);
+  shape.face_normals.push_back(n);
+  shape.face_offsets.push_back(offset);
+}
+
+/// Each vertex's neighbours in edge order (i gets j, j gets i), filled into the flat lists in two
+/// passes: the degrees, then the entries.
+void set_vertex_neighbours(ConvexPolyhedron& shape) {
   std::vector<std::uint32_t> degree(shape.vertices.size() + 1, 0);
   for (const auto& [i, j] : shape.edges) {
     ++degree[static_cast<std::size_t>(i) + 1];
@@ -362,6 +381,48 @@ ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<
     shape.vertex_neighbours.indices[degree[static_cast<std::size_t>(i)]++] = j;
     shape.vertex_neighbours.indices[degree[static_cast<std::size_t>(j)]++] = i;
   }
+}
+
+}  // namespace
+
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
+                                                    const std::vector<std::vector<int>>& faces) {
+  return mass_properties(vertices, faces);
+}
+
+PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices, const IndexLists& faces) {
+  return mass_properties(vertices, faces);
+}
+
+ConvexPolyhedron make_convex_polyhedron(std::vector<Vec3> vertices, std::vector<std::vector<int>> faces,
+                                        const PolyhedronBuildOptions& options, PolyhedronPose* pose) {
+  // The mesh: counts and indices, then the topology (every directed edge once, its reverse once).
+  check_counts(vertices, faces);
+  MeshEdges mesh = paired_edges(sorted_directed_edges(vertices.size(), faces), vertices.size(), faces.size());
+  // The mass properties and the body frame.
+  const BodyFrameMass mass = move_to_body_frame(vertices, faces, options, pose);
+
+  ConvexPolyhedron shape;
+  shape.vertices = std::move(vertices);
+  shape.faces = IndexLists(faces);
+  faces = {};  // the nested copy is no longer needed
+  shape.edges = std::move(mesh.edges);
+  shape.edge_faces = std::move(mesh.edge_faces);
+  shape.volume = mass.volume;
+  shape.principal_inertia_per_density = mass.principal_inertia_per_density;
+  set_bounds(shape);
+  const double tolerance = options.convexity_tolerance * 2.0 * shape.bounding_radius;
+
+  // Faces: normals, convexity, supporting planes. Every vertex must lie below every face's plane.
+  // Large meshes find each face's highest vertex on the convex hull instead of scanning all
+  // vertices (O(V log V) instead of O(F V): 10^5 vertices: 61 s of CPU, now 2.4 s,
+  // bench/RESULTS.md); the check and the offsets are the same.
+  const bool use_hull = shape.vertices.size() >= hull_check_min_vertices;
+  const HullGraph hull = use_hull ? hull_graph(shape.vertices) : HullGraph{};
+  shape.face_normals.reserve(shape.faces.size());
+  shape.face_offsets.reserve(shape.faces.size());
+  for (std::size_t f = 0; f < shape.faces.size(); ++f) add_face_plane(shape, f, hull, use_hull, tolerance);
+  set_vertex_neighbours(shape);
   shrink_to_fit(shape);
   return shape;
 }
