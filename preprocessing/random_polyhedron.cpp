@@ -79,6 +79,114 @@ void check_options(const RandomPolyhedronOptions& o) {
   }
 }
 
+/// The faces' unit normals and areas (Newell's method), and the face of each directed edge.
+struct FaceAdjacency {
+  std::vector<Vec3> normals;
+  std::vector<double> areas;
+  std::map<std::pair<int, int>, int> face_of_edge;  ///< directed edge -> face
+};
+
+FaceAdjacency face_adjacency(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces) {
+  const std::size_t nf = faces.size();
+  FaceAdjacency out;
+  out.normals.resize(nf);
+  out.areas.resize(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const Vec3 n = newell(vertices, faces[f]);
+    out.areas[f] = 0.5 * n.norm();
+    out.normals[f] = n.normalized();
+    for (std::size_t i = 0; i < faces[f].size(); ++i) {
+      out.face_of_edge[{faces[f][i], faces[f][(i + 1) % faces[f].size()]}] = static_cast<int>(f);
+    }
+  }
+  return out;
+}
+
+/// Region growing from face `seed` into group g: neighbours (across an edge) still in no group
+/// whose normal is within the angle of the seed's (not of the neighbour's, so a slowly curving
+/// surface does not collapse into one face). Returns the members, seed first.
+std::vector<int> grow_region(std::size_t seed, int g, const std::vector<std::vector<int>>& faces,
+                             const FaceAdjacency& adjacency, double cos_angle, std::vector<int>& group) {
+  const Vec3 seed_normal = adjacency.normals[seed];
+  std::vector<int> members{static_cast<int>(seed)};
+  group[seed] = g;
+  for (std::size_t k = 0; k < members.size(); ++k) {
+    const auto& face = faces[static_cast<std::size_t>(members[k])];
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      const auto it = adjacency.face_of_edge.find({face[(i + 1) % face.size()], face[i]});
+      if (it == adjacency.face_of_edge.end()) continue;
+      const auto neighbour = static_cast<std::size_t>(it->second);
+      if (group[neighbour] == -1 && adjacency.normals[neighbour].dot(seed_normal) >= cos_angle) {
+        group[neighbour] = g;
+        members.push_back(static_cast<int>(neighbour));
+      }
+    }
+  }
+  return members;
+}
+
+/// The boundary of group g (the directed edges of its members whose twin belongs to another
+/// group) as one loop of vertices; empty when it is not a single simple loop (pinched, or
+/// several loops).
+std::vector<int> boundary_loop(const std::vector<int>& members, int g, const std::vector<std::vector<int>>& faces,
+                               const FaceAdjacency& adjacency, const std::vector<int>& group) {
+  std::map<int, int> next;
+  std::size_t boundary_edges = 0;
+  for (int m : members) {
+    const auto& face = faces[static_cast<std::size_t>(m)];
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      const int from = face[i];
+      const int to = face[(i + 1) % face.size()];
+      const auto twin = adjacency.face_of_edge.find({to, from});
+      if (twin != adjacency.face_of_edge.end() && group[static_cast<std::size_t>(twin->second)] == g) continue;
+      ++boundary_edges;
+      if (!next.emplace(from, to).second) return {};  // pinched boundary
+    }
+  }
+  std::vector<int> loop;
+  if (next.empty()) return loop;
+  int v = next.begin()->first;
+  do {
+    loop.push_back(v);
+    const auto it = next.find(v);
+    if (it == next.end() || loop.size() > boundary_edges) return {};
+    v = it->second;
+  } while (v != loop.front());
+  if (loop.size() != boundary_edges) return {};
+  return loop;
+}
+
+/// True when the polygon `loop` turns left at every corner seen along `normal` (convex), to
+/// 1e-12 scale^2.
+bool is_convex_polygon(const std::vector<Vec3>& vertices, const std::vector<int>& loop, const Vec3& normal,
+                       double scale) {
+  for (std::size_t i = 0; i < loop.size(); ++i) {
+    const Vec3& p = vertices[static_cast<std::size_t>(loop[i])];
+    const Vec3& q = vertices[static_cast<std::size_t>(loop[(i + 1) % loop.size()])];
+    const Vec3& r = vertices[static_cast<std::size_t>(loop[(i + 2) % loop.size()])];
+    if (normal.dot((q - p).cross(r - q)) < -1e-12 * scale * scale) return false;
+  }
+  return true;
+}
+
+/// The vertices used by `faces` and by none of `merged`, in increasing order.
+std::vector<int> vertices_left_inside(std::size_t vertex_count, const std::vector<std::vector<int>>& faces,
+                                      const std::vector<std::vector<int>>& merged) {
+  std::vector<char> on_output(vertex_count, 0);
+  std::vector<char> on_input(vertex_count, 0);
+  for (const auto& face : faces) {
+    for (int v : face) on_input[static_cast<std::size_t>(v)] = 1;
+  }
+  for (const auto& face : merged) {
+    for (int v : face) on_output[static_cast<std::size_t>(v)] = 1;
+  }
+  std::vector<int> inside;
+  for (std::size_t v = 0; v < vertex_count; ++v) {
+    if (on_input[v] && !on_output[v]) inside.push_back(static_cast<int>(v));
+  }
+  return inside;
+}
+
 }  // namespace
 
 std::vector<std::array<int, 3>> convex_hull_triangles(const std::vector<Vec3>& points) {
@@ -127,7 +235,6 @@ double convex_hull_volume(const std::vector<Vec3>& points) {
   return CGAL::to_double(CGAL::Polygon_mesh_processing::volume(hull_mesh(points)));
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 std::vector<std::vector<int>> merge_coplanar_faces(const std::vector<Vec3>& vertices,
                                                    const std::vector<std::vector<int>>& faces, double angle_degrees,
                                                    std::vector<int>& interior_vertices) {
@@ -135,106 +242,33 @@ std::vector<std::vector<int>> merge_coplanar_faces(const std::vector<Vec3>& vert
   if (angle_degrees <= 0.0) return faces;
   const double cos_angle = std::cos(angle_degrees * std::numbers::pi / 180.0);
   const std::size_t nf = faces.size();
-  std::vector<Vec3> normals(nf);
-  std::vector<double> areas(nf);
-  std::map<std::pair<int, int>, int> face_of_edge;  // directed edge -> face
   double scale = 0.0;
   for (const Vec3& v : vertices) scale = std::max(scale, v.norm());
-  for (std::size_t f = 0; f < nf; ++f) {
-    const Vec3 n = newell(vertices, faces[f]);
-    areas[f] = 0.5 * n.norm();
-    normals[f] = n.normalized();
-    for (std::size_t i = 0; i < faces[f].size(); ++i) {
-      face_of_edge[{faces[f][i], faces[f][(i + 1) % faces[f].size()]}] = static_cast<int>(f);
-    }
-  }
+  const FaceAdjacency adjacency = face_adjacency(vertices, faces);
+  // Largest faces first: they seed the groups.
   std::vector<std::size_t> order(nf);
   for (std::size_t f = 0; f < nf; ++f) order[f] = f;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return areas[x] > areas[y]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t x, std::size_t y) { return adjacency.areas[x] > adjacency.areas[y]; });
 
   std::vector<int> group(nf, -1);
   std::vector<std::vector<int>> result;
-  std::vector<char> on_output(vertices.size(), 0);
-  std::vector<char> on_input(vertices.size(), 0);
   int groups = 0;
   for (std::size_t seed : order) {
     if (group[seed] != -1) continue;
     const int g = groups++;
-    const Vec3 seed_normal = normals[seed];
-    std::vector<int> members{static_cast<int>(seed)};
-    group[seed] = g;
-    // Region growing: neighbours whose normal is within the angle of the seed's (not of the
-    // neighbour's, so a slowly curving surface does not collapse into one face).
-    for (std::size_t k = 0; k < members.size(); ++k) {
-      const auto& face = faces[static_cast<std::size_t>(members[k])];
-      for (std::size_t i = 0; i < face.size(); ++i) {
-        const auto it = face_of_edge.find({face[(i + 1) % face.size()], face[i]});
-        if (it == face_of_edge.end()) continue;
-        const auto neighbour = static_cast<std::size_t>(it->second);
-        if (group[neighbour] == -1 && normals[neighbour].dot(seed_normal) >= cos_angle) {
-          group[neighbour] = g;
-          members.push_back(static_cast<int>(neighbour));
-        }
-      }
-    }
-    auto keep_members = [&] {
+    const std::vector<int> members = grow_region(seed, g, faces, adjacency, cos_angle, group);
+    // A group of several faces becomes one face when its boundary is a single loop and a convex
+    // polygon seen along the seed's normal; otherwise its faces stay as they are.
+    const std::vector<int> loop =
+        members.size() == 1 ? std::vector<int>{} : boundary_loop(members, g, faces, adjacency, group);
+    if (loop.size() >= 3 && is_convex_polygon(vertices, loop, adjacency.normals[seed], scale)) {
+      result.push_back(loop);
+    } else {
       for (int m : members) result.push_back(faces[static_cast<std::size_t>(m)]);
-    };
-    if (members.size() == 1) {
-      keep_members();
-      continue;
     }
-    // Boundary: directed edges of the members whose twin belongs to another group.
-    std::map<int, int> next;
-    bool simple = true;
-    std::size_t boundary_edges = 0;
-    for (int m : members) {
-      const auto& face = faces[static_cast<std::size_t>(m)];
-      for (std::size_t i = 0; i < face.size(); ++i) {
-        const int from = face[i];
-        const int to = face[(i + 1) % face.size()];
-        const auto twin = face_of_edge.find({to, from});
-        if (twin != face_of_edge.end() && group[static_cast<std::size_t>(twin->second)] == g) continue;
-        ++boundary_edges;
-        if (!next.emplace(from, to).second) simple = false;  // pinched boundary
-      }
-    }
-    std::vector<int> loop;
-    if (simple && !next.empty()) {
-      int v = next.begin()->first;
-      do {
-        loop.push_back(v);
-        const auto it = next.find(v);
-        if (it == next.end() || loop.size() > boundary_edges) {
-          simple = false;
-          break;
-        }
-        v = it->second;
-      } while (v != loop.front());
-      if (loop.size() != boundary_edges) simple = false;
-    }
-    // The merged face must be a convex polygon seen along the group's normal.
-    for (std::size_t i = 0; simple && i < loop.size(); ++i) {
-      const Vec3& p = vertices[static_cast<std::size_t>(loop[i])];
-      const Vec3& q = vertices[static_cast<std::size_t>(loop[(i + 1) % loop.size()])];
-      const Vec3& r = vertices[static_cast<std::size_t>(loop[(i + 2) % loop.size()])];
-      if (seed_normal.dot((q - p).cross(r - q)) < -1e-12 * scale * scale) simple = false;
-    }
-    if (!simple || loop.size() < 3) {
-      keep_members();
-      continue;
-    }
-    result.push_back(loop);
   }
-  for (const auto& face : faces) {
-    for (int v : face) on_input[static_cast<std::size_t>(v)] = 1;
-  }
-  for (const auto& face : result) {
-    for (int v : face) on_output[static_cast<std::size_t>(v)] = 1;
-  }
-  for (std::size_t v = 0; v < vertices.size(); ++v) {
-    if (on_input[v] && !on_output[v]) interior_vertices.push_back(static_cast<int>(v));
-  }
+  interior_vertices = vertices_left_inside(vertices.size(), faces, result);
   return result;
 }
 
