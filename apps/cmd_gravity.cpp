@@ -116,140 +116,194 @@ void write_attribute(hid_t file, const char* name, double value) {
   if (attr) H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value);
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
+/// The library's options from the command line, checked. Throws BadInput, also for a backend
+/// that cannot run here: it fails fast, before the input is read, whatever the file.
+gravity::GravityOptions gravity_options(const GravityArguments& args) {
+  gravity::GravityOptions options;
+  if (args.method == "tree")
+    options.method = gravity::Method::tree;
+  else if (args.method == "direct")
+    options.method = gravity::Method::direct;
+  else
+    throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
+  if (args.backend == "cpu")
+    options.backend = gravity::Backend::cpu;
+  else if (args.backend == "cuda")
+    options.backend = gravity::Backend::cuda;
+  else
+    throw BadInput("--backend must be 'cpu' or 'cuda', got '" + args.backend + "'");
+  if (!(args.theta > 0) || !std::isfinite(args.theta))
+    throw BadInput("--theta must be a finite number > 0, got " + std::to_string(args.theta));
+  if (args.order != 1 && args.order != 2)
+    throw BadInput("--order must be 1 (monopole) or 2 (quadrupole), got " + std::to_string(args.order));
+  if (!std::isfinite(args.G) || !(args.G > 0)) throw BadInput("--G must be a finite number > 0");
+  if (!(args.softening >= 0) || !std::isfinite(args.softening))
+    throw BadInput("--softening must be a finite length >= 0");
+  if (args.leaf_size < 0 || args.group_size < 0 || args.threads < 0)
+    throw BadInput("--leaf-size, --group-size and --threads must be >= 0 (0: default)");
+  options.theta = args.theta;
+  options.order = args.order;
+  options.G = args.G;
+  if (args.softening > 0) options.softening = {gravity::Softening::Kind::plummer, args.softening};
+  if (args.leaf_size > 0) options.leaf_size = args.leaf_size;
+  if (args.group_size > 0) options.group_size = args.group_size;
+  const std::string unavailable = gravity::backend_unavailable_reason(options);
+  if (!unavailable.empty()) throw BadInput("--backend " + args.backend + ": " + unavailable);
+  return options;
+}
+
+/// The input particles: positions (N x 3, flat) and masses (N), in the file's order.
+struct Particles {
+  std::vector<double> positions;
+  std::vector<double> masses;
+};
+
+/// Opens the input file for reading. Throws BadInput when it is missing or not HDF5.
+Handle open_input(const std::string& in) {
+  std::error_code ec;
+  if (!std::filesystem::exists(in, ec)) throw BadInput(in + ": no such file");
+  if (H5Fis_hdf5(in.c_str()) <= 0) throw BadInput(in + ": not an HDF5 file");
+  Handle file(H5Fopen(in.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file) throw BadInput(in + ": cannot open the HDF5 file");
+  return file;
+}
+
+/// Reads `positions` and `masses` from the open input file and checks their shapes and values:
+/// finite, masses >= 0, and within max_coordinate and max_mass. Throws BadInput.
+Particles read_particles(hid_t file, const std::string& in) {
+  std::vector<hsize_t> pdims, mdims;
+  Particles p;
+  p.positions = read_dataset(file, in, "positions", pdims);
+  p.masses = read_dataset(file, in, "masses", mdims);
+  if (pdims.size() != 2 || pdims[1] != 3)
+    throw BadInput(in + ": dataset 'positions' must have shape (N, 3), got " + shape_string(pdims));
+  if (mdims.size() != 1 || mdims[0] != pdims[0])
+    throw BadInput(in + ": dataset 'masses' must have shape (" + std::to_string(pdims[0]) +
+                   ",) to match 'positions', got " + shape_string(mdims));
+  const std::vector<double>& masses = p.masses;
+  const std::vector<double>& positions = p.positions;
+  for (std::size_t i = 0; i < masses.size(); ++i) {
+    if (std::isnan(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is NaN");
+    if (!std::isfinite(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is infinite");
+    if (masses[i] < 0)
+      throw BadInput(in + ": masses[" + std::to_string(i) + "] is negative (" + std::to_string(masses[i]) + ")");
+  }
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (!std::isfinite(positions[i]))
+      throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) + "] is not finite");
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (std::abs(positions[i]) > max_coordinate)
+      throw BadInput(fmt::format(
+          "{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
+          "overflows double precision)",
+          in, i / 3, i % 3, positions[i], max_coordinate));
+  for (std::size_t i = 0; i < masses.size(); ++i)
+    if (masses[i] > max_mass)
+      throw BadInput(
+          fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
+                      "double precision)",
+                      in, i, masses[i], max_mass));
+  return p;
+}
+
+/// The computed field: accelerations (N x 3, flat), potential (N), the library's timings and the
+/// wall seconds of the whole computation.
+struct Field {
+  std::vector<double> accelerations;
+  std::vector<double> potential;
+  gravity::FieldTimings timings;
+  double seconds = 0.0;
+};
+
+/// Computes the field of the particles on themselves. Throws BadInput when the library refuses
+/// the input, NonFiniteField naming the first particle whose field is not finite.
+Field compute_checked_field(const gravity::GravityOptions& options, const Particles& particles, const std::string& in) {
+  const std::vector<double>& positions = particles.positions;
+  const std::size_t n = particles.masses.size();
+  Field field;
+  std::vector<double>& acc = field.accelerations;
+  std::vector<double>& pot = field.potential;
+  acc.resize(3 * n);
+  pot.resize(n);
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    field.timings = gravity::compute_field(options, positions, particles.masses, acc, pot);
+  } catch (const gravity::GravityError& e) {
+    throw BadInput(in + ": " + e.what());
+  }
+  field.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(acc[3 * i]) || !std::isfinite(acc[3 * i + 1]) || !std::isfinite(acc[3 * i + 2]) ||
+        !std::isfinite(pot[i])) {
+      throw NonFiniteField(
+          fmt::format("{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the "
+                      "field overflows "
+                      "double precision: a large --G, or particles very close together without --softening)",
+                      in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
+                      acc[3 * i + 2], pot[i]));
+    }
+  }
+  return field;
+}
+
+/// Writes the field and the options it was computed with to args.output. Returns exit_ok, or
+/// exit_output_failure after saying why on stderr.
+int write_field(const GravityArguments& args, const gravity::GravityOptions& options, const Field& field) {
+  const std::size_t n = field.potential.size();
+  Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (!out) {
+    std::cerr << "rubble gravity: output failure: " << args.output << ": cannot create the output file\n";
+    return exit_output_failure;
+  }
+  try {
+    write_dataset(out.get(), args.output, "accelerations", {n, 3}, field.accelerations);
+    write_dataset(out.get(), args.output, "potential", {n}, field.potential);
+    write_attribute(out.get(), "G", options.G);
+    write_attribute(out.get(), "theta", options.theta);
+    write_attribute(out.get(), "order", options.order);
+    write_attribute(out.get(), "softening_length", args.softening);
+    // HDF5 buffers the data; a full disk shows only when it is flushed and closed.
+    if (H5Fflush(out.get(), H5F_SCOPE_LOCAL) < 0 || out.reset() < 0) {
+      throw std::runtime_error(args.output + ": cannot flush the output file (disk full or I/O error?)");
+    }
+  } catch (const std::runtime_error& e) {
+    std::cerr << "rubble gravity: output failure: " << e.what() << "\n";
+    return exit_output_failure;
+  }
+  return exit_ok;
+}
+
+/// The one JSON line on stdout: what was computed, with what, and how long it took.
+void print_summary(const GravityArguments& args, const gravity::GravityOptions& options, const Field& field) {
+  nlohmann::json line = {{"N", field.potential.size()},
+                         {"method", gravity::to_string(options.method)},
+                         {"backend", gravity::to_string(options.backend)},
+                         {"theta", options.theta},
+                         {"order", options.order},
+                         {"G", options.G},
+                         {"softening", args.softening},
+                         {"threads", omp_get_max_threads()},
+                         {"build_seconds", field.timings.build_seconds},
+                         {"walk_seconds", field.timings.walk_seconds},
+                         {"seconds", field.seconds},
+                         {"input", args.input},
+                         {"output", args.output}};
+  std::cout << line.dump() << std::endl;
+}
+
 int gravity_command(const GravityArguments& args) {
   const QuietHdf5 quiet;
-  gravity::GravityOptions options;
   try {
-    if (args.method == "tree")
-      options.method = gravity::Method::tree;
-    else if (args.method == "direct")
-      options.method = gravity::Method::direct;
-    else
-      throw BadInput("--method must be 'tree' or 'direct', got '" + args.method + "'");
-    if (args.backend == "cpu")
-      options.backend = gravity::Backend::cpu;
-    else if (args.backend == "cuda")
-      options.backend = gravity::Backend::cuda;
-    else
-      throw BadInput("--backend must be 'cpu' or 'cuda', got '" + args.backend + "'");
-    if (!(args.theta > 0) || !std::isfinite(args.theta))
-      throw BadInput("--theta must be a finite number > 0, got " + std::to_string(args.theta));
-    if (args.order != 1 && args.order != 2)
-      throw BadInput("--order must be 1 (monopole) or 2 (quadrupole), got " + std::to_string(args.order));
-    if (!std::isfinite(args.G) || !(args.G > 0)) throw BadInput("--G must be a finite number > 0");
-    if (!(args.softening >= 0) || !std::isfinite(args.softening))
-      throw BadInput("--softening must be a finite length >= 0");
-    if (args.leaf_size < 0 || args.group_size < 0 || args.threads < 0)
-      throw BadInput("--leaf-size, --group-size and --threads must be >= 0 (0: default)");
-    options.theta = args.theta;
-    options.order = args.order;
-    options.G = args.G;
-    if (args.softening > 0) options.softening = {gravity::Softening::Kind::plummer, args.softening};
-    if (args.leaf_size > 0) options.leaf_size = args.leaf_size;
-    if (args.group_size > 0) options.group_size = args.group_size;
-    // Before the input is read: a backend that cannot run here fails fast, whatever the file.
-    const std::string unavailable = gravity::backend_unavailable_reason(options);
-    if (!unavailable.empty()) throw BadInput("--backend " + args.backend + ": " + unavailable);
-
-    // ---- input
-    const std::string& in = args.input;
-    std::error_code ec;
-    if (!std::filesystem::exists(in, ec)) throw BadInput(in + ": no such file");
-    if (H5Fis_hdf5(in.c_str()) <= 0) throw BadInput(in + ": not an HDF5 file");
-    Handle file(H5Fopen(in.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!file) throw BadInput(in + ": cannot open the HDF5 file");
-    std::vector<hsize_t> pdims, mdims;
-    const std::vector<double> positions = read_dataset(file.get(), in, "positions", pdims);
-    const std::vector<double> masses = read_dataset(file.get(), in, "masses", mdims);
-    if (pdims.size() != 2 || pdims[1] != 3)
-      throw BadInput(in + ": dataset 'positions' must have shape (N, 3), got " + shape_string(pdims));
-    if (mdims.size() != 1 || mdims[0] != pdims[0])
-      throw BadInput(in + ": dataset 'masses' must have shape (" + std::to_string(pdims[0]) +
-                     ",) to match 'positions', got " + shape_string(mdims));
-    for (std::size_t i = 0; i < masses.size(); ++i) {
-      if (std::isnan(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is NaN");
-      if (!std::isfinite(masses[i])) throw BadInput(in + ": masses[" + std::to_string(i) + "] is infinite");
-      if (masses[i] < 0)
-        throw BadInput(in + ": masses[" + std::to_string(i) + "] is negative (" + std::to_string(masses[i]) + ")");
-    }
-    for (std::size_t i = 0; i < positions.size(); ++i)
-      if (!std::isfinite(positions[i]))
-        throw BadInput(in + ": positions[" + std::to_string(i / 3) + "][" + std::to_string(i % 3) + "] is not finite");
-    for (std::size_t i = 0; i < positions.size(); ++i)
-      if (std::abs(positions[i]) > max_coordinate)
-        throw BadInput(fmt::format(
-            "{}: positions[{}][{}] = {:.6g} m: expected a coordinate of magnitude <= {:.0e} m (beyond it the field "
-            "overflows double precision)",
-            in, i / 3, i % 3, positions[i], max_coordinate));
-    for (std::size_t i = 0; i < masses.size(); ++i)
-      if (masses[i] > max_mass)
-        throw BadInput(
-            fmt::format("{}: masses[{}] = {:.6g} kg: expected <= {:.0e} kg (beyond it the field overflows "
-                        "double precision)",
-                        in, i, masses[i], max_mass));
-
-    // ---- compute
+    const gravity::GravityOptions options = gravity_options(args);
+    // The input stays open until the output is written (an output path naming the input fails).
+    const Handle file = open_input(args.input);
+    const Particles particles = read_particles(file.get(), args.input);
     if (args.threads > 0) omp_set_num_threads(args.threads);
-    const std::size_t n = masses.size();
-    std::vector<double> acc(3 * n), pot(n);
-    const auto t0 = std::chrono::steady_clock::now();
-    gravity::FieldTimings timings;
-    try {
-      timings = gravity::compute_field(options, positions, masses, acc, pot);
-    } catch (const gravity::GravityError& e) {
-      throw BadInput(in + ": " + e.what());
-    }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!std::isfinite(acc[3 * i]) || !std::isfinite(acc[3 * i + 1]) || !std::isfinite(acc[3 * i + 2]) ||
-          !std::isfinite(pot[i])) {
-        throw NonFiniteField(
-            fmt::format("{}: particle {} at ({:.6g}, {:.6g}, {:.6g}) m: acceleration ({}, {}, {}), potential {} (the "
-                        "field overflows "
-                        "double precision: a large --G, or particles very close together without --softening)",
-                        in, i, positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], acc[3 * i], acc[3 * i + 1],
-                        acc[3 * i + 2], pot[i]));
-      }
-    }
-
-    // ---- output
+    const Field field = compute_checked_field(options, particles, args.input);
     if (!args.output.empty()) {
-      Handle out(H5Fcreate(args.output.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-      if (!out) {
-        std::cerr << "rubble gravity: output failure: " << args.output << ": cannot create the output file\n";
-        return exit_output_failure;
-      }
-      try {
-        write_dataset(out.get(), args.output, "accelerations", {n, 3}, acc);
-        write_dataset(out.get(), args.output, "potential", {n}, pot);
-        write_attribute(out.get(), "G", options.G);
-        write_attribute(out.get(), "theta", options.theta);
-        write_attribute(out.get(), "order", options.order);
-        write_attribute(out.get(), "softening_length", args.softening);
-        // HDF5 buffers the data; a full disk shows only when it is flushed and closed.
-        if (H5Fflush(out.get(), H5F_SCOPE_LOCAL) < 0 || out.reset() < 0) {
-          throw std::runtime_error(args.output + ": cannot flush the output file (disk full or I/O error?)");
-        }
-      } catch (const std::runtime_error& e) {
-        std::cerr << "rubble gravity: output failure: " << e.what() << "\n";
-        return exit_output_failure;
-      }
+      if (const int code = write_field(args, options, field); code != exit_ok) return code;
     }
-    nlohmann::json line = {{"N", n},
-                           {"method", gravity::to_string(options.method)},
-                           {"backend", gravity::to_string(options.backend)},
-                           {"theta", options.theta},
-                           {"order", options.order},
-                           {"G", options.G},
-                           {"softening", args.softening},
-                           {"threads", omp_get_max_threads()},
-                           {"build_seconds", timings.build_seconds},
-                           {"walk_seconds", timings.walk_seconds},
-                           {"seconds", seconds},
-                           {"input", in},
-                           {"output", args.output}};
-    std::cout << line.dump() << std::endl;
+    print_summary(args, options, field);
   } catch (const InputError& e) {
     std::cerr << "rubble gravity: error: " << e.what() << "\n";
     return exit_bad_input;
