@@ -17,6 +17,7 @@
 #include <fmt/format.h>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "apps/commands.hpp"
@@ -156,141 +157,204 @@ std::string signal_name(int signal_number) {
   return fmt::format("signal {}", signal_number);
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-int run_command(const RunArguments& args) {
-  Scene scene;
-  RunControl control;
-  LoadedCheckpoint loaded;
+/// An input problem to report with exit code 2 (bad_input), or nothing when all is well.
+using InputProblem = std::optional<std::string>;
+
+/// The options that go with --resume, --from-step and --from, checked against each other and
+/// against the folder to resume.
+InputProblem resume_options_problem(const RunArguments& args) {
   const bool resuming = !args.resume_directory.empty();
-  const bool branching = !args.from.empty();
-  std::string branch_description;
+  if (!resuming && args.from_step >= 0) return "--from-step is used with --resume DIR";
+  if (resuming && !args.from.empty()) {
+    return "--from starts a new run from a saved state and --resume goes on with one: give one of them";
+  }
+  if (!resuming) return std::nullopt;
+  if (!args.scene_path.empty()) return "give a scene file or --resume DIR, not both";
+  if (!args.output_directory.empty()) {
+    return "--out cannot be used with --resume (the run goes on in the folder it resumes)";
+  }
+  if (!std::filesystem::is_directory(args.resume_directory)) {
+    return args.resume_directory + ": no such run folder to resume";
+  }
+  return std::nullopt;
+}
+
+/// The checkpoint to resume from: the one of step --from-step, or else the newest valid one
+/// (docs/checkpoints.md). Throws CheckpointError when it cannot be read.
+InputProblem load_checkpoint_to_resume(const RunArguments& args, LoadedCheckpoint& loaded) {
+  if (args.from_step < 0) {
+    loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
+    return std::nullopt;
+  }
+  const std::filesystem::path folder = checkpoint_folder(args.resume_directory);
+  const std::filesystem::path file = folder / fmt::format("step-{:012}.ckpt", args.from_step);
+  if (!std::filesystem::is_regular_file(file)) {
+    std::string steps;
+    for (const auto& path : list_checkpoints(folder)) steps += fmt::format(" {}", checkpoint_step(path));
+    return fmt::format("--from-step {}: no checkpoint of that step in {} (checkpoints at steps:{})", args.from_step,
+                       folder.string(), steps.empty() ? " none" : steps);
+  }
+  loaded.checkpoint = read_checkpoint(file);
+  loaded.file = file;
+  return std::nullopt;
+}
+
+/// A run that goes on from a checkpoint: the scene the checkpoint carries, in the folder it
+/// resumes, to the checkpoint's end time or --end-time. Throws CheckpointError, SceneError.
+InputProblem open_resumed_run(const RunArguments& args, Scene& scene, RunControl& control, LoadedCheckpoint& loaded) {
+  if (InputProblem problem = load_checkpoint_to_resume(args, loaded)) return problem;
+  for (const std::string& reason : loaded.rejected) std::cerr << "rubble run: warning: skipped " << reason << "\n";
+  const Checkpoint& checkpoint = loaded.checkpoint;
+  control.scene_text = checkpoint.scene_text;
+  control.scene_source = checkpoint.scene_source;
+  scene = parse_scene(control.scene_text, control.scene_source);
+  scene.run.output.directory = args.resume_directory;
+  scene.run.end_time = args.end_time > 0.0 ? args.end_time : checkpoint.end_time;
+  if (scene.run.end_time < checkpoint.state.time - 0.5 * scene.run.step.integrator.time_step) {
+    return fmt::format("--end-time {} s is before the checkpoint's time {} s", scene.run.end_time,
+                       checkpoint.state.time);
+  }
+  control.resume = &loaded.checkpoint;
+  return std::nullopt;
+}
+
+/// A new run: the scene file, or the built-in default scene. Throws SceneError, InputFileError.
+void open_new_run(const RunArguments& args, Scene& scene, RunControl& control) {
+  if (args.scene_path.empty()) {
+    control.scene_text = default_scene_toml(default_variant(args));
+    control.scene_source = "<built-in default scene>";
+    scene = parse_scene(control.scene_text, control.scene_source);
+    return;
+  }
+  // Read once, with the scene file's cap and only from a regular file (core/input_file.hpp).
+  control.scene_text = read_input_file(args.scene_path, max_scene_file_bytes, "scene file");
+  scene = parse_scene(control.scene_text, args.scene_path);
+  // Absolute, so that a resumed run anchors the scene's relative paths the same way.
+  control.scene_source = std::filesystem::absolute(args.scene_path).string();
+}
+
+/// The scene and its text: a new run's, or a resumed run's with its checkpoint in `loaded`
+/// (control.resume points at it).
+InputProblem open_run(const RunArguments& args, Scene& scene, RunControl& control, LoadedCheckpoint& loaded) {
   try {
-    if (!resuming && args.from_step >= 0) return bad_input("--from-step is used with --resume DIR");
-    if (resuming && branching) {
-      return bad_input("--from starts a new run from a saved state and --resume goes on with one: give one of them");
-    }
-    if (resuming) {
-      if (!args.scene_path.empty()) return bad_input("give a scene file or --resume DIR, not both");
-      if (!args.output_directory.empty()) {
-        return bad_input("--out cannot be used with --resume (the run goes on in the folder it resumes)");
-      }
-      if (!std::filesystem::is_directory(args.resume_directory)) {
-        return bad_input(args.resume_directory + ": no such run folder to resume");
-      }
-      if (args.from_step >= 0) {
-        const std::filesystem::path folder = checkpoint_folder(args.resume_directory);
-        const std::filesystem::path file = folder / fmt::format("step-{:012}.ckpt", args.from_step);
-        if (!std::filesystem::is_regular_file(file)) {
-          std::string steps;
-          for (const auto& path : list_checkpoints(folder)) steps += fmt::format(" {}", checkpoint_step(path));
-          return bad_input(fmt::format("--from-step {}: no checkpoint of that step in {} (checkpoints at steps:{})",
-                                       args.from_step, folder.string(), steps.empty() ? " none" : steps));
-        }
-        loaded.checkpoint = read_checkpoint(file);
-        loaded.file = file;
-      } else {
-        loaded = load_newest_checkpoint(checkpoint_folder(args.resume_directory));
-      }
-      for (const std::string& reason : loaded.rejected) std::cerr << "rubble run: warning: skipped " << reason << "\n";
-      const Checkpoint& checkpoint = loaded.checkpoint;
-      control.scene_text = checkpoint.scene_text;
-      control.scene_source = checkpoint.scene_source;
-      scene = parse_scene(control.scene_text, control.scene_source);
-      scene.run.output.directory = args.resume_directory;
-      scene.run.end_time = args.end_time > 0.0 ? args.end_time : checkpoint.end_time;
-      if (scene.run.end_time < checkpoint.state.time - 0.5 * scene.run.step.integrator.time_step) {
-        return bad_input(fmt::format("--end-time {} s is before the checkpoint's time {} s", scene.run.end_time,
-                                     checkpoint.state.time));
-      }
-      control.resume = &loaded.checkpoint;
-    } else if (args.scene_path.empty()) {
-      control.scene_text = default_scene_toml(default_variant(args));
-      control.scene_source = "<built-in default scene>";
-      scene = parse_scene(control.scene_text, control.scene_source);
-    } else {
-      // Read once, with the scene file's cap and only from a regular file (core/input_file.hpp).
-      control.scene_text = read_input_file(args.scene_path, max_scene_file_bytes, "scene file");
-      scene = parse_scene(control.scene_text, args.scene_path);
-      // Absolute, so that a resumed run anchors the scene's relative paths the same way.
-      control.scene_source = std::filesystem::absolute(args.scene_path).string();
-    }
+    if (InputProblem problem = resume_options_problem(args)) return problem;
+    if (!args.resume_directory.empty()) return open_resumed_run(args, scene, control, loaded);
+    open_new_run(args, scene, control);
   } catch (const CheckpointError& e) {
-    return bad_input(std::string("cannot resume: ") + e.what());
+    return std::string("cannot resume: ") + e.what();
   } catch (const InputError& e) {  // SceneError, InputFileError and every other input error (core/input_error.hpp)
-    return bad_input(e.what());
+    return std::string(e.what());
   }
-  if (branching) {
-    // The bodies' state from the saved run; everything else from the scene (docs/checkpoints.md,
-    // "Branching").
-    try {
-      SavedState saved = load_saved_state(parse_branch_source(args.from));
-      if (const auto mismatch = body_mismatch(scene.model, saved.model)) {
-        return bad_input(fmt::format("--from {}: the bodies of {} differ from those of the scene {}: {}", args.from,
-                                     saved.description, control.scene_source, *mismatch));
-      }
-      scene.state = std::move(saved.state);
-      // The scene's driving acts on the branch: driven bodies take their prescribed velocities at
-      // the saved time, and [[initial_conditions]] add their rigid motions to the saved velocities
-      // (an aggregate at rest set spinning).
-      set_prescribed_velocities(scene.model, scene.state);
-      if (const auto k = apply_initial_conditions(scene.model, scene.initial_conditions, scene.state)) {
-        return bad_input(
-            fmt::format("--from {}: [[initial_conditions]] entry {} of {} selects no grain of the saved "
-                        "state",
-                        args.from, *k + 1, control.scene_source));
-      }
-      branch_description = saved.description;
-    } catch (const BranchError& e) {
-      return bad_input(std::string("--from: ") + e.what());
+  return std::nullopt;
+}
+
+/// --from: the bodies' state from the saved run, everything else from the scene
+/// (docs/checkpoints.md, "Branching"). Sets `description` to the state it starts from.
+InputProblem branch_from_saved_state(const RunArguments& args, const std::string& scene_source, Scene& scene,
+                                     std::string& description) {
+  try {
+    SavedState saved = load_saved_state(parse_branch_source(args.from));
+    if (const auto mismatch = body_mismatch(scene.model, saved.model)) {
+      return fmt::format("--from {}: the bodies of {} differ from those of the scene {}: {}", args.from,
+                         saved.description, scene_source, *mismatch);
     }
-    control.rest_armed = true;
+    scene.state = std::move(saved.state);
+    // The scene's driving acts on the branch: driven bodies take their prescribed velocities at
+    // the saved time, and [[initial_conditions]] add their rigid motions to the saved velocities
+    // (an aggregate at rest set spinning).
+    set_prescribed_velocities(scene.model, scene.state);
+    if (const auto k = apply_initial_conditions(scene.model, scene.initial_conditions, scene.state)) {
+      return fmt::format(
+          "--from {}: [[initial_conditions]] entry {} of {} selects no grain of the saved "
+          "state",
+          args.from, *k + 1, scene_source);
+    }
+    description = saved.description;
+  } catch (const BranchError& e) {
+    return std::string("--from: ") + e.what();
   }
-  {
-    bool overridden = false;
-    const std::string problem = apply_rest_overrides(args, scene, overridden);
-    if (!problem.empty()) return bad_input(problem);
-    control.rest_overridden = resuming && overridden;
-  }
+  return std::nullopt;
+}
+
+/// The command line's overrides of the scene: --until and --rest-*, then --out and --end-time.
+/// An --end-time, and a branch's end time, are held to the scene's own rule for [time] end_time
+/// (run_control.hpp): the step count from the scene's initial time.
+InputProblem apply_overrides(const RunArguments& args, Scene& scene, RunControl& control) {
+  const bool resuming = !args.resume_directory.empty();
+  bool overridden = false;
+  std::string problem = apply_rest_overrides(args, scene, overridden);
+  if (!problem.empty()) return problem;
+  control.rest_overridden = resuming && overridden;
   if (!resuming) {
     if (!args.output_directory.empty()) scene.run.output.directory = args.output_directory;
     if (args.end_time > 0.0) scene.run.end_time = args.end_time;
   }
-  // An override is held to the scene's own rule for [time] end_time (run_control.hpp): the step
-  // count from the scene's initial time, for a new run and a resumed one alike.
+  const double h = scene.run.step.integrator.time_step;
   if (args.end_time > 0.0) {
-    if (const auto problem = end_time_problem(args.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
-      return bad_input("--end-time: " + *problem);
+    if (const auto end_problem = end_time_problem(args.end_time, scene.state.time, h)) {
+      return "--end-time: " + *end_problem;
     }
-  } else if (branching) {
+  } else if (!args.from.empty()) {
     // The scene's end time counts from t = 0; a branch starts at its saved time.
-    if (const auto problem =
-            end_time_problem(scene.run.end_time, scene.state.time, scene.run.step.integrator.time_step)) {
-      return bad_input(fmt::format("the scene's [time] end_time for a branch from t = {:.6g} s: {} (give --end-time)",
-                                   scene.state.time, *problem));
+    if (const auto end_problem = end_time_problem(scene.run.end_time, scene.state.time, h)) {
+      return fmt::format("the scene's [time] end_time for a branch from t = {:.6g} s: {} (give --end-time)",
+                         scene.state.time, *end_problem);
     }
   }
+  return std::nullopt;
+}
+
+/// Checkpoints, the runaway check, the stop on a signal and where the progress lines go.
+void set_run_control(const RunArguments& args, RunControl& control) {
   control.checkpoint_every_steps = args.checkpoint_every;
   control.checkpoint_interval = 60.0 * args.checkpoint_minutes;
   control.max_speed = args.no_runaway_check ? -1.0 : args.max_speed;
   control.stop_requested = &stop_signal;
-
-  std::ostream* progress = args.quiet ? nullptr : &std::cout;
-  control.progress = progress;
+  control.progress = args.quiet ? nullptr : &std::cout;
   control.warnings = &std::cerr;
-  if (progress) {
-    *progress << "rubble run: " << scene.name << ": " << scene.model.body_count()
-              << " bodies, dt = " << scene.run.step.integrator.time_step
-              << (scene.run.automatic_time_step ? " s (auto)" : " s")
-              << (scene.run.until_rest
-                      ? fmt::format(", until at rest ({}) or t = ", describe_rest_criterion(scene.run.rest))
-                      : std::string(", until t = "))
-              << scene.run.end_time << " s\n";
-    if (branching) *progress << "rubble run: branching from " << branch_description << "\n";
-    if (resuming) {
-      *progress << "rubble run: resuming from " << loaded.file.string() << " (step " << loaded.checkpoint.state.step
-                << ", t = " << loaded.checkpoint.state.time << " s)\n";
-    }
+}
+
+/// The first progress lines: the scene, its time step and when it stops; where a branch starts
+/// (`branched_from` when not null) or a resumed run goes on (`resumed` when not null).
+void print_run_header(std::ostream& out, const Scene& scene, const std::string* branched_from,
+                      const LoadedCheckpoint* resumed) {
+  out << "rubble run: " << scene.name << ": " << scene.model.body_count()
+      << " bodies, dt = " << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
+      << (scene.run.until_rest ? fmt::format(", until at rest ({}) or t = ", describe_rest_criterion(scene.run.rest))
+                               : std::string(", until t = "))
+      << scene.run.end_time << " s\n";
+  if (branched_from != nullptr) out << "rubble run: branching from " << *branched_from << "\n";
+  if (resumed != nullptr) {
+    out << "rubble run: resuming from " << resumed->file.string() << " (step " << resumed->checkpoint.state.step
+        << ", t = " << resumed->checkpoint.state.time << " s)\n";
   }
+}
+
+/// The lines of a finished run: steps, time, solver figures, the time per stage, the output and
+/// the final state's hash, and how to look at it.
+void print_run_summary(const RunSummary& summary, bool resuming) {
+  std::cout << "rubble run: done: " << summary.steps << " steps"
+            << (summary.first_step > 0
+                    ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched", summary.first_step)
+                    : std::string())
+            << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
+            << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
+            << summary.mean_iterations << ", max residual " << summary.max_residual << ", " << summary.unconverged_steps
+            << " steps at the iteration cap"
+            << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts)
+                                            : std::string())
+            << "\n"
+            << stage_breakdown(summary) << "  output: " << summary.run_file.string() << " (" << summary.snapshots
+            << " snapshots; layout in docs/output-format.md)\n"
+            << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)
+            << ", checkpoint " << summary.last_checkpoint.string() << "\n"
+            << "  look at it: rubble post " << summary.run_file.string()
+            << " --vtk, then open the .pvd in ParaView, or h5py.File('" << summary.run_file.string() << "')\n";
+}
+
+/// Steps the scene to its end (or a stop signal) and reports how it ended, with the exit code
+/// of docs/exit-codes.md: 0, 128 + the signal, or 2, 3, 4 by the type of what stopped it.
+int step_the_run(Scene& scene, const RunControl& control, bool resuming) {
   try {
     const StopOnSignals handlers;
     // The run works on the scene's initial state itself, not a copy (one state less in memory).
@@ -304,23 +368,7 @@ int run_command(const RunArguments& args) {
                 << "\n  go on with: rubble run --resume " << scene.run.output.directory << "\n";
       return 128 + signal_number;
     }
-    std::cout << "rubble run: done: " << summary.steps << " steps"
-              << (summary.first_step > 0
-                      ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched", summary.first_step)
-                      : std::string())
-              << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
-              << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
-              << summary.mean_iterations << ", max residual " << summary.max_residual << ", "
-              << summary.unconverged_steps << " steps at the iteration cap"
-              << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts)
-                                              : std::string())
-              << "\n"
-              << stage_breakdown(summary) << "  output: " << summary.run_file.string() << " (" << summary.snapshots
-              << " snapshots; layout in docs/output-format.md)\n"
-              << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)
-              << ", checkpoint " << summary.last_checkpoint.string() << "\n"
-              << "  look at it: rubble post " << summary.run_file.string()
-              << " --vtk, then open the .pvd in ParaView, or h5py.File('" << summary.run_file.string() << "')\n";
+    print_run_summary(summary, resuming);
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;
@@ -338,6 +386,30 @@ int run_command(const RunArguments& args) {
     return exit_failure;
   }
   return exit_ok;
+}
+
+/// `rubble run`: open the run (new, resumed or branched), apply the command line's overrides,
+/// then step it.
+int run_command(const RunArguments& args) {
+  Scene scene;
+  RunControl control;
+  LoadedCheckpoint loaded;  // a resumed run's checkpoint: control.resume points into it
+  if (const InputProblem problem = open_run(args, scene, control, loaded)) return bad_input(*problem);
+  std::string branch_description;
+  if (!args.from.empty()) {
+    if (const InputProblem problem = branch_from_saved_state(args, control.scene_source, scene, branch_description)) {
+      return bad_input(*problem);
+    }
+    control.rest_armed = true;
+  }
+  if (const InputProblem problem = apply_overrides(args, scene, control)) return bad_input(*problem);
+  set_run_control(args, control);
+  const bool resuming = !args.resume_directory.empty();
+  if (control.progress != nullptr) {
+    print_run_header(*control.progress, scene, args.from.empty() ? nullptr : &branch_description,
+                     resuming ? &loaded : nullptr);
+  }
+  return step_the_run(scene, control, resuming);
 }
 
 }  // namespace
