@@ -73,55 +73,10 @@ inline double dist2_point_box(double px, double py, double pz, const std::array<
   return dx * dx + dy * dy + dz * dz;
 }
 
-/// Per-thread scratch for one group: the interaction lists, gathered as structure of arrays so
-/// that the kernels run unit-stride over sources.
-struct GroupBuffers {
-  std::vector<double> px, py, pz, pm;                          // P2P sources (and monopole cells)
-  std::vector<double> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
-  std::vector<std::uint32_t> stack;
-  void clear() {
-    for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz}) v->clear();
-    stack.clear();
-  }
-};
-
-}  // namespace
-
-Tree::Tree(int leaf_size, int group_size) : leaf_size_(leaf_size), group_size_(group_size) {
-  if (leaf_size < 1) throw GravityError("Tree: leaf_size must be >= 1");
-  if (group_size < 1) throw GravityError("Tree: group_size must be >= 1");
-}
-
-void Tree::load_particles(std::span<const double> positions, std::span<const double> masses) {
-  const std::size_t n = masses.size();
-  x_.resize(n);
-  y_.resize(n);
-  z_.resize(n);
-  m_.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t i = order_[k];
-    x_[k] = positions[3 * i];
-    y_[k] = positions[3 * i + 1];
-    z_[k] = positions[3 * i + 2];
-    m_[k] = masses[i];
-  }
-}
-
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
-double Tree::build(std::span<const double> positions, std::span<const double> masses) {
-  const auto t0 = Clock::now();
-  validate_particles(GravityOptions{}, positions, masses);
-  const std::size_t n = masses.size();
-  if (n > std::numeric_limits<std::uint32_t>::max() / 2) throw GravityError("Tree: too many particles (limit 2^31)");
-  nodes_.clear();
-  second_moments_.clear();
-  groups_.clear();
-  order_.resize(n);
-  if (n == 0) {
-    x_.clear(), y_.clear(), z_.clear(), m_.clear();
-    return seconds_since(t0);
-  }
-
+/// The particles' Morton keys in a 21-bit grid over their bounding cube, sorted; `order` receives
+/// the permutation that sorts them (order[k] = index of the k-th particle along the curve).
+std::vector<std::uint64_t> sorted_morton_keys(std::span<const double> positions, std::vector<std::uint32_t>& order) {
+  const std::size_t n = order.size();
   // Bounding cube of all particles, then 21-bit integer coordinates and Morton keys.
   double lo[3] = {positions[0], positions[1], positions[2]};
   double hi[3] = {lo[0], lo[1], lo[2]};
@@ -144,16 +99,104 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
       key |= spread_bits(c) << (2 - d);
     }
     keys[i] = key;
-    order_[i] = static_cast<std::uint32_t>(i);
+    order[i] = static_cast<std::uint32_t>(i);
   }
-  radix_sort(keys, order_);
-  load_particles(positions, masses);
+  radix_sort(keys, order);
+  return keys;
+}
 
+/// Sets a node's centre of mass from its mass m and first moments (sx, sy, sz) (the box centre
+/// when m = 0: the moments are zero then), its size (longest side of the box) and delta (centre
+/// of mass to box centre). Returns the squared distance from the centre of mass to the box's
+/// farthest corner: a bound for b_max that is always valid.
+double set_centre_and_size(Tree::Node& nd, double m, double sx, double sy, double sz) {
+  nd.mass = m;
+  if (m > 0) {
+    nd.cx = sx / m, nd.cy = sy / m, nd.cz = sz / m;
+  } else {  // massless particles only: any centre works, the moments are zero
+    nd.cx = 0.5 * (nd.lo[0] + nd.hi[0]);
+    nd.cy = 0.5 * (nd.lo[1] + nd.hi[1]);
+    nd.cz = 0.5 * (nd.lo[2] + nd.hi[2]);
+  }
+  double corner2 = 0;
+  {
+    const double dx = std::max(nd.cx - nd.lo[0], nd.hi[0] - nd.cx);
+    const double dy = std::max(nd.cy - nd.lo[1], nd.hi[1] - nd.cy);
+    const double dz = std::max(nd.cz - nd.lo[2], nd.hi[2] - nd.cz);
+    corner2 = dx * dx + dy * dy + dz * dz;
+  }
+  nd.size = std::max({nd.hi[0] - nd.lo[0], nd.hi[1] - nd.lo[1], nd.hi[2] - nd.lo[2]});
+  {
+    const double dx = nd.cx - 0.5 * (nd.lo[0] + nd.hi[0]);
+    const double dy = nd.cy - 0.5 * (nd.lo[1] + nd.hi[1]);
+    const double dz = nd.cz - 0.5 * (nd.lo[2] + nd.hi[2]);
+    nd.delta = std::sqrt(dx * dx + dy * dy + dz * dz);
+  }
+  return corner2;
+}
+
+}  // namespace
+
+/// Per-thread scratch for one group: the interaction lists, gathered as structure of arrays so
+/// that the kernels run unit-stride over sources.
+struct Tree::GroupBuffers {
+  std::vector<double> px, py, pz, pm;                          // P2P sources (and monopole cells)
+  std::vector<double> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
+  std::vector<std::uint32_t> stack;
+  void clear() {
+    for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz}) v->clear();
+    stack.clear();
+  }
+};
+
+Tree::Tree(int leaf_size, int group_size) : leaf_size_(leaf_size), group_size_(group_size) {
+  if (leaf_size < 1) throw GravityError("Tree: leaf_size must be >= 1");
+  if (group_size < 1) throw GravityError("Tree: group_size must be >= 1");
+}
+
+void Tree::load_particles(std::span<const double> positions, std::span<const double> masses) {
+  const std::size_t n = masses.size();
+  x_.resize(n);
+  y_.resize(n);
+  z_.resize(n);
+  m_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = order_[k];
+    x_[k] = positions[3 * i];
+    y_[k] = positions[3 * i + 1];
+    z_[k] = positions[3 * i + 2];
+    m_[k] = masses[i];
+  }
+}
+
+double Tree::build(std::span<const double> positions, std::span<const double> masses) {
+  const auto t0 = Clock::now();
+  validate_particles(GravityOptions{}, positions, masses);
+  const std::size_t n = masses.size();
+  if (n > std::numeric_limits<std::uint32_t>::max() / 2) throw GravityError("Tree: too many particles (limit 2^31)");
+  nodes_.clear();
+  second_moments_.clear();
+  groups_.clear();
+  order_.resize(n);
+  if (n == 0) {
+    x_.clear(), y_.clear(), z_.clear(), m_.clear();
+    return seconds_since(t0);
+  }
+  const std::vector<std::uint64_t> keys = sorted_morton_keys(positions, order_);
+  load_particles(positions, masses);
+  build_nodes(keys);
+  second_moments_.resize(nodes_.size());
+  compute_moments();
+  collect_groups();
+  return seconds_since(t0);
+}
+
+void Tree::build_nodes(const std::vector<std::uint64_t>& keys) {
   // Nodes: recursive split of sorted key ranges by their first differing octal digit. Ranges whose
   // keys share the next digits are not split into single-child chains (compressed octree).
   nodes_.emplace_back();
   nodes_[0].begin = 0;
-  nodes_[0].count = static_cast<std::uint32_t>(n);
+  nodes_[0].count = static_cast<std::uint32_t>(keys.size());
   std::vector<std::uint32_t> todo{0};
   while (!todo.empty()) {
     const std::uint32_t ni = todo.back();
@@ -186,10 +229,6 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
     for (std::int32_t c = nodes_[ni].num_children - 1; c >= 0; --c)
       todo.push_back(static_cast<std::uint32_t>(first_child + c));
   }
-  second_moments_.resize(nodes_.size());
-  compute_moments();
-  collect_groups();
-  return seconds_since(t0);
 }
 
 double Tree::refit(std::span<const double> positions, std::span<const double> masses) {
@@ -204,98 +243,85 @@ double Tree::refit(std::span<const double> positions, std::span<const double> ma
   return seconds_since(t0);
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 void Tree::compute_moments() {
   // Children always have larger indices than their parent: a reverse sweep is bottom-up.
   for (std::size_t r = nodes_.size(); r-- > 0;) {
-    Node& nd = nodes_[r];
-    std::array<double, 6>& q = second_moments_[r];
-    q.fill(0.0);
-    double m = 0, sx = 0, sy = 0, sz = 0;
-    if (nd.first_child < 0) {
-      const std::uint32_t b = nd.begin, e = nd.begin + nd.count;
-      nd.lo = {x_[b], y_[b], z_[b]};
-      nd.hi = nd.lo;
-      for (std::uint32_t k = b; k < e; ++k) {
-        m += m_[k];
-        sx += m_[k] * x_[k];
-        sy += m_[k] * y_[k];
-        sz += m_[k] * z_[k];
-        nd.lo = {std::min(nd.lo[0], x_[k]), std::min(nd.lo[1], y_[k]), std::min(nd.lo[2], z_[k])};
-        nd.hi = {std::max(nd.hi[0], x_[k]), std::max(nd.hi[1], y_[k]), std::max(nd.hi[2], z_[k])};
-      }
+    if (nodes_[r].first_child < 0) {
+      leaf_moments(r);
     } else {
-      const Node& c0 = nodes_[static_cast<std::size_t>(nd.first_child)];
-      nd.lo = c0.lo;
-      nd.hi = c0.hi;
-      for (std::int32_t c = 0; c < nd.num_children; ++c) {
-        const Node& ch = nodes_[static_cast<std::size_t>(nd.first_child) + static_cast<std::size_t>(c)];
-        m += ch.mass;
-        sx += ch.mass * ch.cx;
-        sy += ch.mass * ch.cy;
-        sz += ch.mass * ch.cz;
-        for (int d = 0; d < 3; ++d) {
-          nd.lo[d] = std::min(nd.lo[d], ch.lo[d]);
-          nd.hi[d] = std::max(nd.hi[d], ch.hi[d]);
-        }
-      }
-    }
-    nd.mass = m;
-    if (m > 0) {
-      nd.cx = sx / m, nd.cy = sy / m, nd.cz = sz / m;
-    } else {  // massless particles only: any centre works, the moments are zero
-      nd.cx = 0.5 * (nd.lo[0] + nd.hi[0]);
-      nd.cy = 0.5 * (nd.lo[1] + nd.hi[1]);
-      nd.cz = 0.5 * (nd.lo[2] + nd.hi[2]);
-    }
-    // Farthest corner of the bounding box: a bound for b_max that is always valid.
-    double corner2 = 0;
-    {
-      const double dx = std::max(nd.cx - nd.lo[0], nd.hi[0] - nd.cx);
-      const double dy = std::max(nd.cy - nd.lo[1], nd.hi[1] - nd.cy);
-      const double dz = std::max(nd.cz - nd.lo[2], nd.hi[2] - nd.cz);
-      corner2 = dx * dx + dy * dy + dz * dz;
-    }
-    nd.size = std::max({nd.hi[0] - nd.lo[0], nd.hi[1] - nd.lo[1], nd.hi[2] - nd.lo[2]});
-    {
-      const double dx = nd.cx - 0.5 * (nd.lo[0] + nd.hi[0]);
-      const double dy = nd.cy - 0.5 * (nd.lo[1] + nd.hi[1]);
-      const double dz = nd.cz - 0.5 * (nd.lo[2] + nd.hi[2]);
-      nd.delta = std::sqrt(dx * dx + dy * dy + dz * dz);
-    }
-    if (nd.first_child < 0) {
-      // Second moment about the centre of mass and the exact b_max.
-      double b2 = 0;
-      for (std::uint32_t k = nd.begin; k < nd.begin + nd.count; ++k) {
-        const double dx = x_[k] - nd.cx, dy = y_[k] - nd.cy, dz = z_[k] - nd.cz;
-        q[0] += m_[k] * dx * dx;
-        q[1] += m_[k] * dx * dy;
-        q[2] += m_[k] * dx * dz;
-        q[3] += m_[k] * dy * dy;
-        q[4] += m_[k] * dy * dz;
-        q[5] += m_[k] * dz * dz;
-        b2 = std::max(b2, dx * dx + dy * dy + dz * dz);
-      }
-      nd.bmax = std::sqrt(std::min(b2, corner2)) * kBmaxSafety;
-    } else {
-      // Parallel-axis theorem: M = sum_c [M_c + m_c d_c d_c^T], d_c = c_c - c.
-      double bound = 0;
-      for (std::int32_t c = 0; c < nd.num_children; ++c) {
-        const auto ci = static_cast<std::size_t>(nd.first_child) + static_cast<std::size_t>(c);
-        const Node& ch = nodes_[ci];
-        const std::array<double, 6>& qc = second_moments_[ci];
-        const double dx = ch.cx - nd.cx, dy = ch.cy - nd.cy, dz = ch.cz - nd.cz;
-        q[0] += qc[0] + ch.mass * dx * dx;
-        q[1] += qc[1] + ch.mass * dx * dy;
-        q[2] += qc[2] + ch.mass * dx * dz;
-        q[3] += qc[3] + ch.mass * dy * dy;
-        q[4] += qc[4] + ch.mass * dy * dz;
-        q[5] += qc[5] + ch.mass * dz * dz;
-        bound = std::max(bound, std::sqrt(dx * dx + dy * dy + dz * dz) + ch.bmax);
-      }
-      nd.bmax = std::min(bound, std::sqrt(corner2)) * kBmaxSafety;
+      parent_moments(r);
     }
   }
+}
+
+void Tree::leaf_moments(std::size_t r) {
+  Node& nd = nodes_[r];
+  std::array<double, 6>& q = second_moments_[r];
+  q.fill(0.0);
+  double m = 0, sx = 0, sy = 0, sz = 0;
+  const std::uint32_t b = nd.begin, e = nd.begin + nd.count;
+  nd.lo = {x_[b], y_[b], z_[b]};
+  nd.hi = nd.lo;
+  for (std::uint32_t k = b; k < e; ++k) {
+    m += m_[k];
+    sx += m_[k] * x_[k];
+    sy += m_[k] * y_[k];
+    sz += m_[k] * z_[k];
+    nd.lo = {std::min(nd.lo[0], x_[k]), std::min(nd.lo[1], y_[k]), std::min(nd.lo[2], z_[k])};
+    nd.hi = {std::max(nd.hi[0], x_[k]), std::max(nd.hi[1], y_[k]), std::max(nd.hi[2], z_[k])};
+  }
+  const double corner2 = set_centre_and_size(nd, m, sx, sy, sz);
+  // Second moment about the centre of mass and the exact b_max.
+  double b2 = 0;
+  for (std::uint32_t k = nd.begin; k < nd.begin + nd.count; ++k) {
+    const double dx = x_[k] - nd.cx, dy = y_[k] - nd.cy, dz = z_[k] - nd.cz;
+    q[0] += m_[k] * dx * dx;
+    q[1] += m_[k] * dx * dy;
+    q[2] += m_[k] * dx * dz;
+    q[3] += m_[k] * dy * dy;
+    q[4] += m_[k] * dy * dz;
+    q[5] += m_[k] * dz * dz;
+    b2 = std::max(b2, dx * dx + dy * dy + dz * dz);
+  }
+  nd.bmax = std::sqrt(std::min(b2, corner2)) * kBmaxSafety;
+}
+
+void Tree::parent_moments(std::size_t r) {
+  Node& nd = nodes_[r];
+  std::array<double, 6>& q = second_moments_[r];
+  q.fill(0.0);
+  double m = 0, sx = 0, sy = 0, sz = 0;
+  const Node& c0 = nodes_[static_cast<std::size_t>(nd.first_child)];
+  nd.lo = c0.lo;
+  nd.hi = c0.hi;
+  for (std::int32_t c = 0; c < nd.num_children; ++c) {
+    const Node& ch = nodes_[static_cast<std::size_t>(nd.first_child) + static_cast<std::size_t>(c)];
+    m += ch.mass;
+    sx += ch.mass * ch.cx;
+    sy += ch.mass * ch.cy;
+    sz += ch.mass * ch.cz;
+    for (int d = 0; d < 3; ++d) {
+      nd.lo[d] = std::min(nd.lo[d], ch.lo[d]);
+      nd.hi[d] = std::max(nd.hi[d], ch.hi[d]);
+    }
+  }
+  const double corner2 = set_centre_and_size(nd, m, sx, sy, sz);
+  // Parallel-axis theorem: M = sum_c [M_c + m_c d_c d_c^T], d_c = c_c - c.
+  double bound = 0;
+  for (std::int32_t c = 0; c < nd.num_children; ++c) {
+    const auto ci = static_cast<std::size_t>(nd.first_child) + static_cast<std::size_t>(c);
+    const Node& ch = nodes_[ci];
+    const std::array<double, 6>& qc = second_moments_[ci];
+    const double dx = ch.cx - nd.cx, dy = ch.cy - nd.cy, dz = ch.cz - nd.cz;
+    q[0] += qc[0] + ch.mass * dx * dx;
+    q[1] += qc[1] + ch.mass * dx * dy;
+    q[2] += qc[2] + ch.mass * dx * dz;
+    q[3] += qc[3] + ch.mass * dy * dy;
+    q[4] += qc[4] + ch.mass * dy * dz;
+    q[5] += qc[5] + ch.mass * dz * dz;
+    bound = std::max(bound, std::sqrt(dx * dx + dy * dy + dz * dz) + ch.bmax);
+  }
+  nd.bmax = std::min(bound, std::sqrt(corner2)) * kBmaxSafety;
 }
 
 void Tree::collect_groups() {
@@ -353,7 +379,6 @@ void Tree::collect_groups() {
   }
 }
 
-// NOLINTNEXTLINE(readability-function-size): over 80 lines, listed in docs/architecture.md
 double Tree::evaluate(const GravityOptions& options, std::span<double> accelerations,
                       std::span<double> potential) const {
   const auto t0 = Clock::now();
@@ -372,9 +397,30 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   if (n == 0) return seconds_since(t0);
 
   const double eps = options.softening.kind == Softening::Kind::plummer ? options.softening.length : 0.0;
-  const double eps2 = eps * eps;
-  const double G = options.G;
+  const double inv_theta = 1.0 / options.theta;
   const bool quadrupole = options.order == 2;
+  std::uint64_t p2p_total = 0, m2p_total = 0;
+
+#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelWalkMin)
+  {
+    GroupBuffers buf;
+    // Groups are independent: each target's sums run in the same order whatever thread runs
+    // them, so dynamic scheduling keeps results bit-identical for any thread count.
+#pragma omp for schedule(dynamic, 4)
+    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
+      const Group& g = groups_[static_cast<std::size_t>(gi)];
+      gather_interactions(g, inv_theta, quadrupole, buf);
+      p2p_total += static_cast<std::uint64_t>(buf.pm.size()) * g.count;
+      m2p_total += static_cast<std::uint64_t>(buf.cm.size()) * g.count;
+      evaluate_group(g, buf, eps, options.G, accelerations, potential);
+    }
+  }
+  stats_.particle_interactions = p2p_total;
+  stats_.cell_interactions = m2p_total;
+  return seconds_since(t0);
+}
+
+void Tree::gather_interactions(const Group& g, double inv_theta, bool quadrupole, GroupBuffers& buf) const {
   // Opening criterion (Barnes 1994, "r > l/theta + delta"): a node is used as a multipole for the
   // whole group when the distance from its centre of mass to the group's bounding box exceeds
   //   r_open = max(l / theta + delta, b_max),
@@ -382,87 +428,73 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   // the box centre. The b_max term keeps every target strictly outside the sphere holding the
   // node's particles (the expansion converges and a node never approximates a target's own mass,
   // even for theta >= 1).
-  const double inv_theta = 1.0 / options.theta;
   // Quadrupole evaluations cost about two particle interactions: tiny nodes are summed directly.
   const std::uint32_t direct_below = quadrupole ? 3 : 0;
-  const bool with_potential = !potential.empty();
-  std::uint64_t p2p_total = 0, m2p_total = 0;
-
-#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelWalkMin)
-  {
-    GroupBuffers buf;
-    auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
-      buf.px.insert(buf.px.end(), x_.begin() + b, x_.begin() + b + count);
-      buf.py.insert(buf.py.end(), y_.begin() + b, y_.begin() + b + count);
-      buf.pz.insert(buf.pz.end(), z_.begin() + b, z_.begin() + b + count);
-      buf.pm.insert(buf.pm.end(), m_.begin() + b, m_.begin() + b + count);
-    };
-    // Groups are independent: each target's sums run in the same order whatever thread runs
-    // them, so dynamic scheduling keeps results bit-identical for any thread count.
-#pragma omp for schedule(dynamic, 4)
-    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
-      const Group& g = groups_[static_cast<std::size_t>(gi)];
-      buf.clear();
-      buf.stack.push_back(0);
-      while (!buf.stack.empty()) {
-        const Node& nd = nodes_[buf.stack.back()];
-        const std::size_t ni = buf.stack.back();
-        buf.stack.pop_back();
-        const double d2 = dist2_point_box(nd.cx, nd.cy, nd.cz, g.lo, g.hi);
-        const double r_open = std::max(nd.bmax, nd.size * inv_theta + nd.delta);
-        if (d2 > r_open * r_open) {  // well separated from every target of the group
-          if (!quadrupole) {
-            buf.px.push_back(nd.cx);
-            buf.py.push_back(nd.cy);
-            buf.pz.push_back(nd.cz);
-            buf.pm.push_back(nd.mass);
-          } else if (nd.count < direct_below) {
-            push_particles(nd.begin, nd.count);
-          } else {
-            const std::array<double, 6>& q = second_moments_[ni];
-            buf.cx.push_back(nd.cx);
-            buf.cy.push_back(nd.cy);
-            buf.cz.push_back(nd.cz);
-            buf.cm.push_back(nd.mass);
-            buf.xx.push_back(q[0]);
-            buf.xy.push_back(q[1]);
-            buf.xz.push_back(q[2]);
-            buf.yy.push_back(q[3]);
-            buf.yz.push_back(q[4]);
-            buf.zz.push_back(q[5]);
-          }
-        } else if (nd.first_child < 0) {
-          push_particles(nd.begin, nd.count);
-        } else {
-          for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
-            buf.stack.push_back(static_cast<std::uint32_t>(nd.first_child + c));
-        }
+  auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
+    buf.px.insert(buf.px.end(), x_.begin() + b, x_.begin() + b + count);
+    buf.py.insert(buf.py.end(), y_.begin() + b, y_.begin() + b + count);
+    buf.pz.insert(buf.pz.end(), z_.begin() + b, z_.begin() + b + count);
+    buf.pm.insert(buf.pm.end(), m_.begin() + b, m_.begin() + b + count);
+  };
+  buf.clear();
+  buf.stack.push_back(0);
+  while (!buf.stack.empty()) {
+    const Node& nd = nodes_[buf.stack.back()];
+    const std::size_t ni = buf.stack.back();
+    buf.stack.pop_back();
+    const double d2 = dist2_point_box(nd.cx, nd.cy, nd.cz, g.lo, g.hi);
+    const double r_open = std::max(nd.bmax, nd.size * inv_theta + nd.delta);
+    if (d2 > r_open * r_open) {  // well separated from every target of the group
+      if (!quadrupole) {
+        buf.px.push_back(nd.cx);
+        buf.py.push_back(nd.cy);
+        buf.pz.push_back(nd.cz);
+        buf.pm.push_back(nd.mass);
+      } else if (nd.count < direct_below) {
+        push_particles(nd.begin, nd.count);
+      } else {
+        const std::array<double, 6>& q = second_moments_[ni];
+        buf.cx.push_back(nd.cx);
+        buf.cy.push_back(nd.cy);
+        buf.cz.push_back(nd.cz);
+        buf.cm.push_back(nd.mass);
+        buf.xx.push_back(q[0]);
+        buf.xy.push_back(q[1]);
+        buf.xz.push_back(q[2]);
+        buf.yy.push_back(q[3]);
+        buf.yz.push_back(q[4]);
+        buf.zz.push_back(q[5]);
       }
-      const std::size_t np = buf.pm.size(), nc = buf.cm.size();
-      p2p_total += static_cast<std::uint64_t>(np) * g.count;
-      m2p_total += static_cast<std::uint64_t>(nc) * g.count;
-      for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
-        detail::Accum acc;
-        detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k], z_[k],
-                                eps2, acc);
-        if (nc > 0)
-          detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(), buf.xx.data(),
-                                 buf.xy.data(), buf.xz.data(), buf.yy.data(), buf.yz.data(), buf.zz.data(), nc, x_[k],
-                                 y_[k], z_[k], eps2, acc);
-        // The target's own leaf is always opened (it is within b_max of the node's centre), so
-        // with softening its self term m_k / eps is in acc.phi: remove it.
-        if (eps2 > 0) acc.phi -= m_[k] / eps;
-        const std::size_t o = order_[k];
-        accelerations[3 * o] = -G * acc.ax;
-        accelerations[3 * o + 1] = -G * acc.ay;
-        accelerations[3 * o + 2] = -G * acc.az;
-        if (with_potential) potential[o] = -G * acc.phi;
-      }
+    } else if (nd.first_child < 0) {
+      push_particles(nd.begin, nd.count);
+    } else {
+      for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
+        buf.stack.push_back(static_cast<std::uint32_t>(nd.first_child + c));
     }
   }
-  stats_.particle_interactions = p2p_total;
-  stats_.cell_interactions = m2p_total;
-  return seconds_since(t0);
+}
+
+void Tree::evaluate_group(const Group& g, const GroupBuffers& buf, double eps, double G,
+                          std::span<double> accelerations, std::span<double> potential) const {
+  const double eps2 = eps * eps;
+  const std::size_t np = buf.pm.size(), nc = buf.cm.size();
+  for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
+    detail::Accum acc;
+    detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k], z_[k], eps2,
+                            acc);
+    if (nc > 0)
+      detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(), buf.xx.data(), buf.xy.data(),
+                             buf.xz.data(), buf.yy.data(), buf.yz.data(), buf.zz.data(), nc, x_[k], y_[k], z_[k], eps2,
+                             acc);
+    // The target's own leaf is always opened (it is within b_max of the node's centre), so
+    // with softening its self term m_k / eps is in acc.phi: remove it.
+    if (eps2 > 0) acc.phi -= m_[k] / eps;
+    const std::size_t o = order_[k];
+    accelerations[3 * o] = -G * acc.ax;
+    accelerations[3 * o + 1] = -G * acc.ay;
+    accelerations[3 * o + 2] = -G * acc.az;
+    if (!potential.empty()) potential[o] = -G * acc.phi;
+  }
 }
 
 }  // namespace rubble::gravity

@@ -72,9 +72,17 @@ class Tree {
   const Stats& stats() const { return stats_; }
 
  private:
+  /// Copies the particles into x_, y_, z_, m_ in Morton order (order_).
   void load_particles(std::span<const double> positions, std::span<const double> masses);
+  /// Splits the root's range of sorted keys into the compressed octree's nodes (nodes_).
+  void build_nodes(const std::vector<std::uint64_t>& keys);
+  /// Boxes, masses, centres, b_max and second moments of every node, bottom-up.
   void compute_moments();
-  void build_nodes();
+  /// compute_moments for leaf r, from its particles.
+  void leaf_moments(std::size_t r);
+  /// compute_moments for node r, from its children (parallel-axis theorem).
+  void parent_moments(std::size_t r);
+  /// Cuts the particle range into the target groups (groups_).
   void collect_groups();
 
   int leaf_size_;
@@ -89,6 +97,15 @@ class Tree {
     std::array<double, 3> lo{}, hi{};
   };
   std::vector<Group> groups_;
+  /// The interaction lists of one group and the walk's stack (per thread; defined in tree.cpp).
+  struct GroupBuffers;
+  /// Walks the tree for group g: fills buf with the particles and the monopole or quadrupole
+  /// cells that act on its targets.
+  void gather_interactions(const Group& g, double inv_theta, bool quadrupole, GroupBuffers& buf) const;
+  /// The field of buf's interaction lists on each target of g (softening length eps, constant
+  /// G), written at the targets' input indices.
+  void evaluate_group(const Group& g, const GroupBuffers& buf, double eps, double G, std::span<double> accelerations,
+                      std::span<double> potential) const;
   mutable Stats stats_;
 };
 
