@@ -3,10 +3,10 @@
 // body-frame shape (centroid at the origin, principal axes of inertia) with its topology
 // (face normals, edges, adjacency) filled in. The contact detection of polyhedra
 // (contact_detection/common_plane.hpp) relies on everything make_convex_polyhedron fills.
-#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "core/input_error.hpp"
 #include "core/math.hpp"
 #include "core/model.hpp"
 #include "core/shapes.hpp"
@@ -14,13 +14,14 @@
 namespace rubble {
 
 /// Thrown for a mesh that is not a valid convex polyhedron; says which face or vertex is at
-/// fault (-1 when the fault is global) so a file reader can point at the line.
-struct PolyhedronError : std::invalid_argument {
+/// fault (-1 when the fault is global) so a file reader can point at the line. An InputError:
+/// the mesh is what a user gave (core/input_error.hpp).
+struct PolyhedronError : InputError {
   int face = -1;    ///< index of the offending face, or -1
   int vertex = -1;  ///< index of the offending vertex, or -1
   /// The message, and the face and vertex at fault.
   PolyhedronError(const std::string& what, int face_index = -1, int vertex_index = -1)
-      : std::invalid_argument(what), face(face_index), vertex(vertex_index) {}
+      : InputError(what), face(face_index), vertex(vertex_index) {}
 };
 
 /// Volume, centroid and inertia of a closed polyhedral surface, for a unit density.
@@ -37,7 +38,7 @@ struct PolyhedronMassProperties {
 /// int x x^T dV = V/20 (sum_i p_i p_i^T + s s^T), s = sum_i p_i (Tonon 2004, J. Math. Stat. 1(1);
 /// the same closed form as Mirtich 1996 for tetrahedra). The inertia about the centroid is
 /// I = tr(C) Id - C with C the central second moment. Exact up to round-off for any closed,
-/// consistently oriented surface, convex or not. Throws std::invalid_argument on bad indices.
+/// consistently oriented surface, convex or not. Throws PolyhedronError on bad indices.
 PolyhedronMassProperties polyhedron_mass_properties(const std::vector<Vec3>& vertices,
                                                     const std::vector<std::vector<int>>& faces);
 

@@ -11,14 +11,16 @@
 #include <string>
 #include <vector>
 
+#include "core/input_error.hpp"
 #include "nlgs_solver/local_problem.hpp"
 
 namespace rubble {
 
 /// A file that cannot be read or written as an FCLib problem; the message names the file and
-/// the dataset and says what was expected.
-struct FclibFileError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// the dataset and says what was expected. An InputError (core/input_error.hpp); a solution that
+/// cannot be written throws it too, so `rubble fclib` catches it around the write itself (exit 4).
+struct FclibFileError : InputError {
+  using InputError::InputError;
 };
 
 /// How W is stored in a file (the `nz` field).

@@ -15,14 +15,16 @@
 #include <stdexcept>
 #include <vector>
 
+#include "core/input_error.hpp"
 #include "core/math.hpp"
 
 namespace rubble {
 
-/// Thrown when packing options are invalid or the region cannot hold the requested grains.
-class PackingError : public std::invalid_argument {
+/// Thrown when packing options are invalid or the region cannot hold the requested grains. An
+/// InputError: the options are what a user gave (core/input_error.hpp).
+class PackingError : public InputError {
  public:
-  using std::invalid_argument::invalid_argument;
+  using InputError::InputError;
 };
 
 /// How grain radii are distributed between radius_min and radius_max.

@@ -335,7 +335,7 @@ ConvexPolyhedron generate_random_polyhedron(const RandomPolyhedronOptions& optio
   ConvexPolyhedron shape;
   try {
     shape = make_convex_polyhedron(std::move(vertices), std::move(faces), build);
-  } catch (const std::invalid_argument& e) {
+  } catch (const PolyhedronError& e) {
     throw std::runtime_error(std::string("random polyhedron (seed ") + std::to_string(seed) + "): " + e.what());
   }
 

@@ -1,12 +1,15 @@
 // The extension module rubble._rubble: the C++ side of the Python package `rubble`
 // (python/rubble/ is the pure-Python side). Errors of the libraries become Python exceptions
 // with the same messages: SceneError (ValueError) with the file, line and key as attributes,
-// CheckpointError and NumericalFailure (RuntimeError), FclibFileError (ValueError); any other
+// CheckpointError and NumericalFailure (RuntimeError), FclibFileError (ValueError), PolyhedronError
+// and PackingError (ValueError, as when they were std::invalid_argument); any other
 // std::invalid_argument is a ValueError, std::runtime_error a RuntimeError (pybind11's rules).
 #include <pybind11/pybind11.h>
 
 #include "bindings.hpp"
+#include "core/polyhedron.hpp"
 #include "nlgs_solver/fclib_file.hpp"
+#include "preprocessing/packing.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/run.hpp"
 #include "simulation/scene_file.hpp"
@@ -39,6 +42,12 @@ PYBIND11_MODULE(_rubble, m) {
       numerical_failure(e.what());
     } catch (const FclibFileError& e) {
       fclib_error(e.what());
+    } catch (const PolyhedronError& e) {
+      // Input errors (core/input_error.hpp), hence std::runtime_error; they were
+      // std::invalid_argument and stay ValueError in Python.
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const PackingError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
     }
   });
 

@@ -128,6 +128,9 @@ void expect_error(const fs::path& file, const std::string& fragment) {
   }
 }
 
+// The command line maps every InputError to exit code 2 by the base (docs/exit-codes.md).
+TEST(FclibFile, AnUnreadableFileIsAnInputError) { EXPECT_THROW(read_fclib_local(scratch("missing.hdf5")), InputError); }
+
 TEST(FclibFile, BadFilesGiveMessagesNamingFileAndDataset) {
   expect_error(scratch("missing.hdf5"), "no such file");
 

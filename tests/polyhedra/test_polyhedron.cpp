@@ -1,6 +1,8 @@
 // core/polyhedron: mass properties against closed forms, body frame, topology, bad meshes.
 #include "core/polyhedron.hpp"
 
+#include "core/input_error.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -181,6 +183,22 @@ void expect_error(const Mesh& m, const std::string& fragment) {
     ADD_FAILURE() << "no error, expected one containing '" << fragment << "'";
   } catch (const PolyhedronError& e) {
     EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+// The command line maps every InputError to exit code 2 by the base (docs/exit-codes.md): a bad
+// mesh is one, and still says which face is at fault.
+TEST(PolyhedronBuild, BadMeshIsAnInputErrorNamingTheFace) {
+  Mesh open = box_mesh(1, 1, 1);
+  open.faces.pop_back();
+  try {
+    (void)make_convex_polyhedron(open.vertices, open.faces);
+    ADD_FAILURE() << "no error for an open mesh";
+  } catch (const InputError& e) {
+    const auto* error = dynamic_cast<const PolyhedronError*>(&e);
+    ASSERT_NE(error, nullptr) << e.what();
+    EXPECT_GE(error->face, 0) << e.what();
+    EXPECT_LT(error->face, static_cast<int>(open.faces.size())) << e.what();
   }
 }
 

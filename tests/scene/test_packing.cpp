@@ -342,6 +342,13 @@ TEST(SphereCloud, TooDenseOrInvalidIsAPackingError) {
   EXPECT_THROW(sphere_cloud_radius(10, options.sizes, 1.5), PackingError);
 }
 
+// The command line maps every InputError to exit code 2 by the base (docs/exit-codes.md).
+TEST(SphereCloud, APackingErrorIsAnInputError) {
+  SphereCloudOptions options = cloud_options();
+  options.count = 0;
+  EXPECT_THROW(sphere_cloud(options, 1), InputError);
+}
+
 TEST(DeriveSeed, StreamsDiffer) {
   EXPECT_NE(derive_seed(1, 0), derive_seed(1, 1));
   EXPECT_NE(derive_seed(1, 0), derive_seed(2, 0));
