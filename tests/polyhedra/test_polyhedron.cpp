@@ -177,13 +177,15 @@ TEST(PolyhedronBuild, AddPolyhedronGrainUsesTheShapeMass) {
 
 // --- bad meshes: a clear error, never a crash ---
 
-void expect_error(const Mesh& m, const std::string& fragment) {
+/// Whether building `m` throws a PolyhedronError whose message holds `fragment` (for EXPECT_TRUE).
+::testing::AssertionResult rejected_with(const Mesh& m, const std::string& fragment) {
   try {
     (void)make_convex_polyhedron(m.vertices, m.faces);
-    ADD_FAILURE() << "no error, expected one containing '" << fragment << "'";
   } catch (const PolyhedronError& e) {
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    if (std::string(e.what()).find(fragment) != std::string::npos) return ::testing::AssertionSuccess();
+    return ::testing::AssertionFailure() << "message \"" << e.what() << "\" lacks \"" << fragment << "\"";
   }
+  return ::testing::AssertionFailure() << "no error, expected one containing \"" << fragment << "\"";
 }
 
 // The command line maps every InputError to exit code 2 by the base (docs/exit-codes.md): a bad
@@ -205,32 +207,32 @@ TEST(PolyhedronBuild, BadMeshIsAnInputErrorNamingTheFace) {
 TEST(PolyhedronBuild, RejectsBadMeshes) {
   Mesh open = box_mesh(1, 1, 1);
   open.faces.pop_back();
-  expect_error(open, "not closed");
+  EXPECT_TRUE(rejected_with(open, "not closed"));
 
   Mesh flipped = box_mesh(1, 1, 1);
   std::reverse(flipped.faces[2].begin(), flipped.faces[2].end());
-  expect_error(flipped, "same direction");
+  EXPECT_TRUE(rejected_with(flipped, "same direction"));
 
   Mesh clockwise = box_mesh(1, 1, 1);
   for (auto& f : clockwise.faces) std::reverse(f.begin(), f.end());
-  expect_error(clockwise, "clockwise");
+  EXPECT_TRUE(rejected_with(clockwise, "clockwise"));
 
   Mesh dented = box_mesh(1, 1, 1);
   dented.vertices[7] *= 0.5;  // a corner pushed in: faces no longer planar / convex
-  expect_error(dented, "face");
+  EXPECT_TRUE(rejected_with(dented, "face"));
 
   Mesh out_of_range = box_mesh(1, 1, 1);
   out_of_range.faces[0][1] = 12;
-  expect_error(out_of_range, "uses vertex 12");
+  EXPECT_TRUE(rejected_with(out_of_range, "uses vertex 12"));
 
   Mesh flat;
   flat.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
   flat.faces = {{0, 1, 3, 2}, {0, 2, 3, 1}};
-  expect_error(flat, "at least 4 faces");
+  EXPECT_TRUE(rejected_with(flat, "at least 4 faces"));
 
   Mesh lonely = box_mesh(1, 1, 1);
   lonely.vertices.emplace_back(5, 5, 5);
-  expect_error(lonely, "vertex 8 is on no face");
+  EXPECT_TRUE(rejected_with(lonely, "vertex 8 is on no face"));
 }
 
 /// A triangulated UV sphere of radius r: n_lat rings of n_lon vertices and the two poles.
@@ -274,10 +276,10 @@ TEST(PolyhedronBuild, LargeMeshesAreCheckedOnTheHull) {
 
   Mesh bumped = sphere;
   bumped.vertices[400] *= 1.01;
-  expect_error(bumped, "not convex");
+  EXPECT_TRUE(rejected_with(bumped, "not convex"));
   Mesh dented = sphere;
   dented.vertices[400] *= 0.99;
-  expect_error(dented, "not convex");
+  EXPECT_TRUE(rejected_with(dented, "not convex"));
 }
 
 }  // namespace

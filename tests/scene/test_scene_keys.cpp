@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <fstream>
 #include <functional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -106,62 +107,71 @@ std::vector<DocRow> doc_rows(const std::string& heading, const std::string& mark
   return rows;
 }
 
-/// The doc's rows under `heading` (and `marker`) list `before` (keys the table does not hold),
-/// then the table's keys, then `after`: same names, same kind of value (the type column starts
-/// with it, or names each word of a choice), "auto" where accepted, **required** where required.
+/// Whether the doc's rows under `heading` (and `marker`) list `before` (keys the table does not
+/// hold), then the table's keys, then `after`: same names, same kind of value (the type column
+/// starts with it, or names each word of a choice), "auto" where accepted, **required** where
+/// required. On failure, every mismatch found (for EXPECT_TRUE).
 template <class Options>
-void expect_doc_matches(const std::string& heading, const std::vector<SectionKey<Options>>& keys,
-                        const std::vector<std::string>& before = {}, const std::vector<std::string>& after = {},
-                        const std::string& marker = "") {
+::testing::AssertionResult doc_matches(const std::string& heading, const std::vector<SectionKey<Options>>& keys,
+                                       const std::vector<std::string>& before = {},
+                                       const std::vector<std::string>& after = {}, const std::string& marker = "") {
   const std::vector<DocRow> rows = doc_rows(heading, marker);
   const std::string where = heading + (marker.empty() ? "" : " " + marker);
-  ASSERT_EQ(rows.size(), before.size() + keys.size() + after.size())
-      << "keys in docs/scene-file.md " << where << " vs the code's table";
-  for (std::size_t i = 0; i < before.size(); ++i) EXPECT_EQ(rows[i].key, before[i]) << where << " row " << i;
+  if (rows.size() != before.size() + keys.size() + after.size()) {
+    return ::testing::AssertionFailure() << where << ": " << rows.size() << " keys in docs/scene-file.md, "
+                                         << before.size() + keys.size() + after.size() << " expected";
+  }
+  std::ostringstream mismatches;
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    if (rows[i].key != before[i]) mismatches << "\n  row " << i << ": " << rows[i].key << " vs " << before[i];
+  }
   for (std::size_t i = 0; i < after.size(); ++i) {
-    EXPECT_EQ(rows[before.size() + keys.size() + i].key, after[i])
-        << where << " row " << before.size() + keys.size() + i;
+    const std::size_t r = before.size() + keys.size() + i;
+    if (rows[r].key != after[i]) mismatches << "\n  row " << r << ": " << rows[r].key << " vs " << after[i];
   }
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const DocRow& row = rows[before.size() + i];
     const SectionKey<Options>& key = keys[i];
-    EXPECT_EQ(row.key, key.name) << where << " row " << before.size() + i;
+    if (row.key != key.name) mismatches << "\n  row " << before.size() + i << ": " << row.key << " vs " << key.name;
     const std::string_view type = scene_detail::key_type(key);
-    EXPECT_FALSE(type.empty() && key.choices[0].empty()) << key.name << ": the table gives no kind of value";
-    if (!type.empty()) {
-      EXPECT_EQ(row.type.rfind(type, 0), 0u)
-          << where << " `" << key.name << "`: documented as \"" << row.type << "\", expected \"" << type << "...\"";
+    if (type.empty() && key.choices[0].empty())
+      mismatches << "\n  `" << key.name << "`: the table gives no kind of value";
+    if (!type.empty() && row.type.rfind(type, 0) != 0) {
+      mismatches << "\n  `" << key.name << "`: documented as \"" << row.type << "\", expected \"" << type << "...\"";
     }
     for (const std::string_view word : key.choices) {
-      if (word.empty()) continue;
-      EXPECT_NE(row.type.find("`\"" + std::string(word) + "\"`"), std::string::npos)
-          << where << " `" << key.name << "`: the word \"" << word << "\" is not documented";
+      if (!word.empty() && row.type.find("`\"" + std::string(word) + "\"`") == std::string::npos) {
+        mismatches << "\n  `" << key.name << "`: the word \"" << word << "\" is not documented";
+      }
     }
     const bool accepts_auto = key.auto_when_negative || key.automatic != nullptr;
-    EXPECT_EQ(row.type.find("auto") != std::string::npos, accepts_auto)
-        << where << " `" << key.name << "`: \"auto\" documented or accepted but not both";
-    EXPECT_EQ(row.required, key.required) << where << " `" << key.name << "`: required in one only";
-    EXPECT_FALSE(key.doc.empty()) << key.name;
+    if ((row.type.find("auto") != std::string::npos) != accepts_auto) {
+      mismatches << "\n  `" << key.name << "`: \"auto\" documented or accepted but not both";
+    }
+    if (row.required != key.required) mismatches << "\n  `" << key.name << "`: required in one only";
+    if (key.doc.empty()) mismatches << "\n  `" << key.name << "`: no doc in the table";
   }
+  if (mismatches.str().empty()) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << where << ":" << mismatches.str();
 }
 
-TEST(SceneKeys, SolverTableMatchesTheDocs) { expect_doc_matches("## `[solver]`", scene_detail::solver_keys()); }
+TEST(SceneKeys, SolverTableMatchesTheDocs) { EXPECT_TRUE(doc_matches("## `[solver]`", scene_detail::solver_keys())); }
 
 TEST(SceneKeys, DetectionTableMatchesTheDocs) {
-  expect_doc_matches("## `[detection]`", scene_detail::detection_keys());
+  EXPECT_TRUE(doc_matches("## `[detection]`", scene_detail::detection_keys()));
 }
 
-TEST(SceneKeys, OutputTableMatchesTheDocs) { expect_doc_matches("## `[output]`", scene_detail::output_keys()); }
+TEST(SceneKeys, OutputTableMatchesTheDocs) { EXPECT_TRUE(doc_matches("## `[output]`", scene_detail::output_keys())); }
 
 TEST(SceneKeys, ContactLawTableMatchesTheDocs) {
-  expect_doc_matches("## `[[contact_laws]]`", scene_detail::contact_law_keys(), {"materials"});
+  EXPECT_TRUE(doc_matches("## `[[contact_laws]]`", scene_detail::contact_law_keys(), {"materials"}));
 }
 
 TEST(SceneKeys, TopLevelTableMatchesTheDocs) {
   // The keys in the "Top level" table, the sections in the "Layout of a file" block.
   std::vector<SectionKey<Scene>> keys, sections;
   for (const auto& key : scene_detail::top_level_keys()) (key.type == "table" ? sections : keys).push_back(key);
-  expect_doc_matches("## Top level", keys);
+  EXPECT_TRUE(doc_matches("## Top level", keys));
   std::vector<std::string> layout;
   bool inside = false;
   bool code = false;
@@ -181,7 +191,7 @@ TEST(SceneKeys, TopLevelTableMatchesTheDocs) {
 
 TEST(SceneKeys, TimeTableMatchesTheDocs) {
   // rest_kinetic_energy is a removed key, refused with a message naming its successor.
-  expect_doc_matches("## `[time]`", scene_detail::time_keys(), {}, {"rest_kinetic_energy"});
+  EXPECT_TRUE(doc_matches("## `[time]`", scene_detail::time_keys(), {}, {"rest_kinetic_energy"}));
 }
 
 TEST(SceneKeys, GravityTablesMatchTheDocs) {
@@ -209,20 +219,20 @@ TEST(SceneKeys, GravityTablesMatchTheDocs) {
       if (key.name != "type" && std::find_if(all.begin(), all.end(), same) == all.end()) all.push_back(key);
     }
   }
-  expect_doc_matches("## `[gravity]`", all, {}, {}, "| key |");
+  EXPECT_TRUE(doc_matches("## `[gravity]`", all, {}, {}, "| key |"));
 }
 
 TEST(SceneKeys, MaterialTableMatchesTheDocs) {
-  expect_doc_matches("## `[[materials]]`", scene_detail::material_keys());
+  EXPECT_TRUE(doc_matches("## `[[materials]]`", scene_detail::material_keys()));
 }
 
 TEST(SceneKeys, WallTablesMatchTheDocs) {
-  expect_doc_matches("## `[[walls]]`", scene_detail::wall_keys("plane"), {}, {}, "**Plane**");
-  expect_doc_matches("## `[[walls]]`", scene_detail::wall_keys("box"), {}, {}, "**Box**");
+  EXPECT_TRUE(doc_matches("## `[[walls]]`", scene_detail::wall_keys("plane"), {}, {}, "**Plane**"));
+  EXPECT_TRUE(doc_matches("## `[[walls]]`", scene_detail::wall_keys("box"), {}, {}, "**Box**"));
 }
 
 TEST(SceneKeys, BodyTablesMatchTheDocs) {
-  expect_doc_matches("## `[[bodies]]`", scene_detail::sphere_body_keys(), {}, {}, "**Sphere**");
+  EXPECT_TRUE(doc_matches("## `[[bodies]]`", scene_detail::sphere_body_keys(), {}, {}, "**Sphere**"));
   // A polyhedron: the sphere's keys but `radius` ("as for a sphere"), then one way's keys, which
   // the doc's table of ways lists.
   std::vector<std::string> sphere;
@@ -254,20 +264,21 @@ TEST(SceneKeys, BodyTablesMatchTheDocs) {
   }
   // The keys of a driven body, as the walls and bodies take them.
   const auto& plane = scene_detail::wall_keys("plane");
-  expect_doc_matches("### Driven bodies",
-                     std::vector<SectionKey<scene_detail::WallSpec>>(plane.end() - 3, plane.end()));
+  EXPECT_TRUE(
+      doc_matches("### Driven bodies", std::vector<SectionKey<scene_detail::WallSpec>>(plane.end() - 3, plane.end())));
 }
 
 TEST(SceneKeys, InitialConditionTableMatchesTheDocs) {
-  expect_doc_matches("## `[[initial_conditions]]`", scene_detail::initial_condition_keys());
+  EXPECT_TRUE(doc_matches("## `[[initial_conditions]]`", scene_detail::initial_condition_keys()));
 }
 
 TEST(SceneKeys, GeneratorTablesMatchTheDocs) {
   const std::string heading = "## `[[generators]]`";
-  expect_doc_matches(heading, scene_detail::generator_common_keys(), {}, {}, "| key |");
-  expect_doc_matches(heading, scene_detail::generator_shape_keys("mix"), {}, {}, "**Random polyhedra**");
+  EXPECT_TRUE(doc_matches(heading, scene_detail::generator_common_keys(), {}, {}, "| key |"));
+  EXPECT_TRUE(doc_matches(heading, scene_detail::generator_shape_keys("mix"), {}, {}, "**Random polyhedra**"));
   for (const std::string_view type : {"box_deposit", "cubic_grid", "sphere_cloud"}) {
-    expect_doc_matches(heading, scene_detail::generator_type_keys(type), {}, {}, "**`" + std::string(type) + "`**");
+    EXPECT_TRUE(
+        doc_matches(heading, scene_detail::generator_type_keys(type), {}, {}, "**`" + std::string(type) + "`**"));
   }
   // The random [[bodies]] polyhedron takes the same shape keys.
   std::vector<std::string> shape_keys, body_keys;
