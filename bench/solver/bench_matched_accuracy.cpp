@@ -85,13 +85,13 @@ StepError compare(const Model& model, const ContactList& candidate, const Contac
     if (loaded_reference) ++error.loaded_reference;
   }
   error.force = norm > 0.0 ? std::sqrt(difference / norm) : 0.0;
-  error.loaded = error.loaded_reference > 0 ? static_cast<double>(mismatched) / static_cast<double>(error.loaded_reference)
-                                            : 0.0;
+  error.loaded =
+      error.loaded_reference > 0 ? static_cast<double>(mismatched) / static_cast<double>(error.loaded_reference) : 0.0;
   return error;
 }
 
-nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const StepOptions& base,
-                             double tolerance, int max_iterations, const SolverOptions& reference, int steps) {
+nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const StepOptions& base, double tolerance,
+                             int max_iterations, const SolverOptions& reference, int steps) {
   StepOptions options = base;
   options.solver.tolerance = tolerance;
   if (max_iterations > 0) options.solver.max_iterations = max_iterations;
@@ -164,7 +164,8 @@ int main(int argc, char** argv) {
       reference.polish_iterations = 50;
     }
     for (const double tolerance : tolerances) {
-      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, reference, steps).dump() << std::endl;
+      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, reference, steps).dump()
+                << std::endl;
     }
   } catch (const std::exception& e) {
     std::cerr << "bench_matched_accuracy: error: " << e.what() << "\n";
