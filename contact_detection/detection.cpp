@@ -413,4 +413,20 @@ void carry_impulses(const ContactList& previous, ContactList& current) {
   carry_impulses(impulses_to_carry(previous), current);
 }
 
+std::vector<Vec3> angular_impulses_to_carry(const ContactList& previous) {
+  std::vector<Vec3> carried(previous.size());
+  for (std::size_t k = 0; k < previous.size(); ++k) carried[k] = previous[k].frame * previous[k].angular_impulse;
+  return carried;
+}
+
+void carry_angular_impulses(const std::vector<CarriedImpulse>& previous, const std::vector<Vec3>& previous_angular,
+                            ContactList& current) {
+  std::size_t old = 0;
+  for (Contact& contact : current) {
+    while (old < previous.size() && previous[old].id < contact.id) ++old;
+    if (old == previous.size()) break;
+    if (previous[old].id == contact.id) contact.angular_impulse = contact.frame.transpose() * previous_angular[old];
+  }
+}
+
 }  // namespace rubble

@@ -100,4 +100,16 @@ void carry_impulses(const std::vector<CarriedImpulse>& previous, ContactList& cu
 /// The same from last step's full contact list (carry_impulses(impulses_to_carry(previous), current)).
 void carry_impulses(const ContactList& previous, ContactList& current);
 
+/// Last step's angular impulses (Contact::angular_impulse: rolling and twisting resistance) in the
+/// world frame, one per contact of `previous`, in its order (index-aligned with impulses_to_carry's
+/// records). Only built when some contact law resists rotation, so that plain scenes carry 40 bytes
+/// a point as before.
+std::vector<Vec3> angular_impulses_to_carry(const ContactList& previous);
+
+/// Stage 4 for the angular impulses: each contact whose id was present last step starts from last
+/// step's angular impulse, rotated into the new frame (the matching of carry_impulses; `previous`
+/// gives the ids, `previous_angular` the impulses, index-aligned with it).
+void carry_angular_impulses(const std::vector<CarriedImpulse>& previous, const std::vector<Vec3>& previous_angular,
+                            ContactList& current);
+
 }  // namespace rubble

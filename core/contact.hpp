@@ -52,7 +52,11 @@ struct Contact {
   double cohesive_impulse = 0.0;
 
   // The unknown.
-  Vec3 impulse = Vec3::Zero();                 ///< local impulse (r_n, r_t, r_s), N s (r_n >= -cohesive_impulse)
+  Vec3 impulse = Vec3::Zero();  ///< local impulse (r_n, r_t, r_s), N s (r_n >= -cohesive_impulse)
+  /// The rolling and twisting resistance's angular impulse (m_n, m_t, m_s) on body b in the contact
+  /// frame, N m s (body a receives -m; ContactLaw::rolling_friction, twisting_friction): warm-started
+  /// and checkpointed like `impulse`. Zero for contacts without these laws.
+  Vec3 angular_impulse = Vec3::Zero();
   ContactStatus status = ContactStatus::open;  ///< after the solve
 };
 

@@ -10,7 +10,8 @@ namespace {
 /// compact problem's sphere contacts: sphere-sphere and sphere-wall pairs whose law has it (a
 /// polyhedron resists rolling through its faces' several contact points). r_eff = r_a r_b /
 /// (r_a + r_b), a sphere's own radius against a wall; the angular compliance a = 1/I_a + 1/I_b
-/// of the moving spheres (isotropic). The angular impulses start from zero each step.
+/// of the moving spheres (isotropic). The angular impulses start from the contacts' carried ones
+/// (Contact::angular_impulse: last step's, warm start), applied by warm_start_rotations.
 void gather_rotations(const Model& model, const SweepPlan& plan, const ContactList& contacts, CompactProblem& out) {
   out.rotation_of_point.assign(plan.order.size(), CompactProblem::no_rotation);
   for (std::size_t p = 0; p < plan.order.size(); ++p) {
@@ -29,7 +30,7 @@ void gather_rotations(const Model& model, const SweepPlan& plan, const ContactLi
     const double reduced = reduced_radius(model, a, b);
     out.rotation_of_point[p] = static_cast<std::uint32_t>(out.rotation.size());
     out.rotation.push_back(
-        {compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, Vec3::Zero()});
+        {compliance, law.twisting_friction * reduced, law.rolling_friction * reduced, reduced, c.angular_impulse});
   }
 }
 
@@ -129,6 +130,28 @@ void scatter_compact_problem(const Model& model, const SweepPlan& plan, const Co
       velocity.linear[body] = compact.bodies[static_cast<std::size_t>(i)].linear;
       velocity.angular[body] = compact.bodies[static_cast<std::size_t>(i)].angular;
     }
+  }
+  // The rotation blocks' angular impulses, for the next step's warm start and the checkpoints
+  // (contacts without a block keep the zero they were detected with).
+  for (std::size_t p = 0; p < compact.rotation_of_point.size(); ++p) {
+    const std::uint32_t r = compact.rotation_of_point[p];
+    if (r != CompactProblem::no_rotation) contacts[plan.order[p]].angular_impulse = compact.rotation[r].impulse;
+  }
+}
+
+void warm_start_rotations(CompactProblem& compact) {
+  for (std::size_t p = 0; p < compact.rotation_of_point.size(); ++p) {
+    const std::uint32_t index = compact.rotation_of_point[p];
+    if (index == CompactProblem::no_rotation) continue;
+    CompactProblem::Rotation& r = compact.rotation[index];
+    const CompactProblem::Point& c = compact.points[p];
+    r.impulse = CompactProblem::project_onto_rotation_bounds(r.impulse, r, std::max(c.impulse.x(), 0.0));
+    if (r.impulse == Vec3::Zero()) continue;
+    const Vec3 world = c.frame * r.impulse;  // on b; -world on a
+    CompactProblem::Body& b = compact.bodies[c.b];
+    CompactProblem::Body& a = compact.bodies[c.a];
+    if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * world;
+    if (a.inverse_mass != 0.0) a.angular -= a.inverse_inertia * world;
   }
 }
 

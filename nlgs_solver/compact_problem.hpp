@@ -49,7 +49,7 @@ struct CompactProblem {
     double twist_bound;  ///< mu_t r_eff, m: bound on the twisting impulse per unit normal impulse
     double roll_bound;   ///< mu_r r_eff, m: bound on the rolling impulse per unit normal impulse
     double radius;       ///< r_eff, m: turns the block's residual into velocity units
-    Vec3 impulse;        ///< (twist about n, roll about t, roll about s), N m s; from zero each step
+    Vec3 impulse;        ///< (twist about n, roll about t, roll about s), N m s; last step's at the start (warm start)
   };
   /// rotation_of_point's value for a point without a rotation block.
   static constexpr std::uint32_t no_rotation = std::numeric_limits<std::uint32_t>::max();
@@ -121,8 +121,12 @@ struct CompactProblem {
   Vec3 allowed_rotation_impulse(std::size_t k, const Rotation& rotation) const {
     const Point& c = points[k];
     const Vec3 omega = c.frame.transpose() * (bodies[c.b].angular - bodies[c.a].angular);
-    const double normal = std::max(c.impulse.x(), 0.0);
-    Vec3 m = rotation.impulse - omega / rotation.compliance;
+    return project_onto_rotation_bounds(rotation.impulse - omega / rotation.compliance, rotation,
+                                        std::max(c.impulse.x(), 0.0));
+  }
+
+  /// m projected on |m_n| <= mu_t r_eff r_n and ||(m_t, m_s)|| <= mu_r r_eff r_n (`normal` = r_n >= 0).
+  static Vec3 project_onto_rotation_bounds(Vec3 m, const Rotation& rotation, double normal) {
     m.x() = std::clamp(m.x(), -rotation.twist_bound * normal, rotation.twist_bound * normal);
     const double roll = std::hypot(m.y(), m.z()), roll_limit = rotation.roll_bound * normal;
     if (roll > roll_limit) {
@@ -192,8 +196,14 @@ struct ExtendedProblem {
 CompactProblem gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan,
                                       const ContactList& contacts, const BodyVelocities& velocity, bool parallel);
 
-/// Copies the compact problem's impulses back into `contacts` and its moving bodies' velocities
-/// into `velocity` (walls are left as they are).
+/// Warm start of the rotation blocks (rolling and twisting resistance), after the forces' warm
+/// start: each block's carried angular impulse, projected on its bounds for the warm-started normal
+/// impulse, applied to the bodies' angular velocities. Serial, in the plan's order: the same sums
+/// for any thread count. Nothing to do for a problem without rotation blocks.
+void warm_start_rotations(CompactProblem& compact);
+
+/// Copies the compact problem's impulses (and rotation blocks' angular impulses) back into
+/// `contacts` and its moving bodies' velocities into `velocity` (walls are left as they are).
 void scatter_compact_problem(const Model& model, const SweepPlan& plan, const CompactProblem& compact,
                              ContactList& contacts, BodyVelocities& velocity, bool parallel);
 

@@ -183,6 +183,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   const ResidualScale scale = residual_scale(compact, plan, parallel);
   const bool cohesive = model.contact_laws.any_cohesive();
   apply_warm_start(plan, contacts, cohesive, parallel, compact);
+  warm_start_rotations(compact);
 
   SolverStats stats;
   if (contacts.empty()) {

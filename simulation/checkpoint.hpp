@@ -112,7 +112,7 @@ CheckpointView checkpoint_view(const Checkpoint& checkpoint);
 
 /// Version of the checkpoint layout; bump on any change (older files are then rejected).
 inline constexpr std::uint32_t checkpoint_format_version =
-    3;  // 2: held gravity field; 3: rest watcher on speeds, Z, contacts
+    4;  // 2: held gravity field; 3: rest watcher on speeds, Z, contacts; 4: contacts' angular impulses
 
 /// CRC-64/XZ of `bytes`, continuing from `crc` (pass the previous result to chain; 0 to start).
 std::uint64_t crc64(std::span<const std::byte> bytes, std::uint64_t crc = 0);

@@ -21,7 +21,7 @@ inline constexpr std::array<char, 8> magic{'R', 'U', 'B', 'B', 'L', 'E', 'C', 'K
 inline constexpr std::size_t header_bytes = 8 + 4 + 4 + 8;  // magic, version, reserved, payload size
 inline constexpr std::size_t trailer_bytes = 8;             // CRC-64
 /// Bytes of one contact in the payload (put_contact).
-inline constexpr std::size_t contact_bytes = 4 * 4 + 8 * (3 + 9 + 1 + 3 + 3 + 9 + 4 + 3) + 1;
+inline constexpr std::size_t contact_bytes = 4 * 4 + 8 * (3 + 9 + 1 + 3 + 3 + 9 + 4 + 3 + 3) + 1;
 
 /// Only counts the bytes (the payload size announced in the header before the payload is streamed).
 struct ByteCounter {
@@ -77,7 +77,8 @@ void put_state(Writer<Sink>& out, const State& state) {
 }
 
 /// Every field of a contact: a resumed step must see last step's contacts exactly as the
-/// uninterrupted run did (the warm start reads id, frame and impulse; snapshots read the rest).
+/// uninterrupted run did (the warm start reads id, frame, impulse and angular impulse; snapshots
+/// read the rest). The angular impulse (rolling and twisting resistance) since format version 4.
 template <typename Sink>
 void put_contact(Writer<Sink>& out, const Contact& c) {
   out.put(c.id.body_a);
@@ -95,6 +96,7 @@ void put_contact(Writer<Sink>& out, const Contact& c) {
   out.put(c.normal_velocity_before);
   out.put(c.normal_velocity_target);
   out.put(c.impulse);
+  out.put(c.angular_impulse);
   out.put(static_cast<std::uint8_t>(c.status));
 }
 
@@ -160,7 +162,8 @@ void put_rest(Writer<Sink>& out, const RestWatch& rest) {
 /// Every byte of the payload, in file order (docs/checkpoints.md). The same function feeds the
 /// counter, the in-memory buffer and the file, so the three can never disagree. The held gravity
 /// field comes last, after the run's bookkeeping, not beside the rest of the StepCarry: it was
-/// added at the end of the payload in format version 2, and this order keeps the bytes of version 3.
+/// added at the end of the payload in format version 2, and this order keeps the layout of version 3
+/// (version 4 added a field to every contact).
 template <typename Sink>
 void put_payload(Writer<Sink>& out, const CheckpointView& checkpoint) {
   out.put(checkpoint.scene_text);

@@ -147,6 +147,7 @@ Contact get_contact(Reader& in) {
   c.normal_velocity_before = in.get<double>();
   c.normal_velocity_target = in.get<double>();
   c.impulse = in.vec3();
+  c.angular_impulse = in.vec3();
   const auto status = in.get<std::uint8_t>();
   if (status > static_cast<std::uint8_t>(ContactStatus::sliding)) in.fail(fmt::format("contact status {}", status));
   c.status = static_cast<ContactStatus>(status);

@@ -78,10 +78,15 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   timer.finish(Stage::free_velocity);
 
   // 4. store_impulses: warm start needs of last step's contacts only their ids and world impulses
-  // (40 of 304 bytes a point): keep those and free the list before this step's is built, so that
+  // (40 of 336 bytes a point): keep those and free the list before this step's is built, so that
   // the two full lists are never alive together (at 1e5 spheres that was the run's peak memory).
+  // Rolling and twisting resistance's angular impulses too, only when some law has it.
   std::vector<CarriedImpulse> carried;
+  std::vector<Vec3> carried_angular;
   if (options.solver.warm_start) carried = impulses_to_carry(workspace.carry.contacts);
+  if (options.solver.warm_start && model.contact_laws.any_resists_rotation()) {
+    carried_angular = angular_impulses_to_carry(workspace.carry.contacts);
+  }
   ContactList().swap(workspace.carry.contacts);
   timer.finish(Stage::store_impulses);
 
@@ -95,7 +100,9 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
 
   // 6. match_contacts: last step's impulses warm-start the persistent contacts.
   if (options.solver.warm_start) carry_impulses(carried, contacts);
+  if (!carried_angular.empty()) carry_angular_impulses(carried, carried_angular, contacts);
   std::vector<CarriedImpulse>().swap(carried);
+  std::vector<Vec3>().swap(carried_angular);
   workspace.carry.contacts = std::move(contacts);
   timer.finish(Stage::match_contacts);
 
