@@ -8,7 +8,8 @@ namespace {
 
 /// Rolling and twisting resistance (ContactLaw::rolling_friction, twisting_friction) of the
 /// compact problem's sphere contacts: sphere-sphere and sphere-wall pairs whose law has it (a
-/// polyhedron resists rolling through its faces' several contact points). r_eff = r_a r_b /
+/// polyhedron resists rolling through its faces' several contact points: scenes refuse these laws
+/// for pairs with a polyhedron material, nlgs_solver/README.md "Polyhedra"). r_eff = r_a r_b /
 /// (r_a + r_b), a sphere's own radius against a wall; the angular compliance a = 1/I_a + 1/I_b
 /// of the moving spheres (isotropic). The angular impulses start from the contacts' carried ones
 /// (Contact::angular_impulse: last step's, warm start), applied by warm_start_rotations.

@@ -31,6 +31,48 @@ void check_contact_law_coverage(const SceneDraft& draft) {
   }
 }
 
+void check_rotation_resistance_shapes(const SceneDraft& draft) {
+  const Model& model = draft.scene.model;
+  const std::size_t n = model.materials.size();
+  std::vector<bool> polyhedra(n, false), touches(n, false);
+  for (const GrainSpec& g : draft.grains) {
+    touches[static_cast<std::size_t>(g.material)] = true;
+    if (g.polyhedron) polyhedra[static_cast<std::size_t>(g.material)] = true;
+  }
+  for (const WallSpec& w : draft.walls) touches[static_cast<std::size_t>(w.material)] = true;
+  // The polyhedron material of pair (a, b) whose law resists rotation, or -1.
+  auto polyhedron_material = [&](int a, int b) {
+    if (!model.contact_laws.get(a, b).resists_rotation()) return -1;
+    const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
+    if (polyhedra[ua] && touches[ub]) return a;
+    if (polyhedra[ub] && touches[ua]) return b;
+    return -1;
+  };
+  auto refuse = [&](const TableReader& entry, int material) {
+    const std::string_view key = entry.has("rolling_friction") ? "rolling_friction" : "twisting_friction";
+    entry.fail_key(key, "rolling and twisting resistance act on sphere contacts only, and material \"" +
+                            model.materials[static_cast<std::size_t>(material)].name +
+                            "\" is used by polyhedron grains: expected 0 for a pair with a polyhedron material (a "
+                            "polyhedron's shape resists rolling through the points of its faces; docs/scene-file.md, "
+                            "\"Rolling and twisting resistance\")");
+  };
+  for (const TableReader& entry : draft.root.tables("contact_laws")) {
+    const auto* pair = entry.get("materials")->as_array();
+    const int a = draft.material_ids.at(std::string(pair->get(0)->as_string()->get()));
+    const int b = draft.material_ids.at(std::string(pair->get(1)->as_string()->get()));
+    if (const int material = polyhedron_material(a, b); material >= 0) refuse(entry, material);
+  }
+  if (!draft.default_law || !draft.default_law->resists_rotation()) return;
+  for (int a = 0; a < static_cast<int>(n); ++a) {
+    for (int b = 0; b < static_cast<int>(n); ++b) {
+      if (draft.law_defined[model.contact_laws.index(a, b)]) continue;
+      if (const int material = polyhedron_material(a, b); material >= 0) {
+        refuse(*draft.root.optional_table("default_contact_law"), material);
+      }
+    }
+  }
+}
+
 /// (With grains present, any other empty intersection of half-spaces is caught by the grain check.)
 void check_walls_have_an_inside(const SceneDraft& draft) {
   const auto& walls = draft.walls;

@@ -102,6 +102,7 @@ Scene parse(const std::string& file, const toml::table& root, const std::string&
     draft.root.fail(nullptr, "", "the scene has no grains: expected at least one [[bodies]] or [[generators]] entry");
   }
   check_contact_law_coverage(draft);
+  check_rotation_resistance_shapes(draft);
   check_walls_have_an_inside(draft);
   check_grains_inside_walls(draft);
   check_grains_do_not_overlap(draft);

@@ -114,6 +114,10 @@ void parse_generators(SceneDraft& draft);
 /// Every pair of materials that can touch (grain-grain, grain-wall) needs a law, unless a
 /// [default_contact_law] covers the missing ones.
 void check_contact_law_coverage(const SceneDraft& draft);
+/// Rolling and twisting resistance act on sphere contacts only: a law with rolling_friction or
+/// twisting_friction > 0 for a pair where a polyhedron grain's material meets a material that can
+/// touch it is refused (nlgs_solver/README.md, "Rolling and twisting resistance").
+void check_rotation_resistance_shapes(const SceneDraft& draft);
 /// Two plane walls facing away from each other (normals opposite) leave no room between them.
 void check_walls_have_an_inside(const SceneDraft& draft);
 void check_grains_inside_walls(const SceneDraft& draft);

@@ -279,6 +279,24 @@ void Simulation::set_contact_law(int material_a, int material_b, const ContactLa
       throw std::invalid_argument(fmt::format("{}: expected a finite number >= 0, got {}", name, value));
     }
   }
+  if (law.resists_rotation()) {
+    // As the scene file (simulation/scene_checks.cpp): rolling and twisting resistance act on
+    // sphere contacts only, and a pair with a polyhedron material is refused.
+    const Model& model = scene_.model;
+    std::vector<bool> polyhedra(static_cast<std::size_t>(n), false), present(static_cast<std::size_t>(n), false);
+    for (std::size_t body = 0; body < model.body_count(); ++body) {
+      const auto material = static_cast<std::size_t>(model.material[body]);
+      present[material] = true;
+      if (model.shape_kind[body] == ShapeKind::polyhedron) polyhedra[material] = true;
+    }
+    const auto a = static_cast<std::size_t>(material_a), b = static_cast<std::size_t>(material_b);
+    if ((polyhedra[a] && present[b]) || (polyhedra[b] && present[a])) {
+      throw std::invalid_argument(fmt::format(
+          "rolling_friction, twisting_friction: rolling and twisting resistance act on sphere contacts only, and "
+          "material \"{}\" is used by polyhedron grains: expected 0 for a pair with a polyhedron material",
+          model.materials[polyhedra[a] && present[b] ? a : b].name));
+    }
+  }
   scene_.model.contact_laws.set(material_a, material_b, law);
   scene_modified_ = true;
 }

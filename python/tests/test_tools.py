@@ -227,3 +227,14 @@ def test_scene_from_dict_with_generators_and_contact_laws():
     assert (law["friction"], law["cohesion"], law["rolling_friction"], law["twisting_friction"]) == (0.6, 2.5, 0.05, 0.0)
     with pytest.raises(ValueError, match="cohesion"):
         sim.set_contact_law("rock", "rock", cohesion=-1.0)
+
+
+def test_rolling_and_twisting_friction_are_refused_for_polyhedra():
+    # As the scene file: these laws act on sphere contacts only (nlgs_solver/README.md, "Polyhedra").
+    sim = rubble.Simulation(rubble.pack("cloud", n=5, shape="polyhedra", dmin=2, dmax=3, seed=3))
+    for key in ("rolling_friction", "twisting_friction"):
+        with pytest.raises(ValueError, match="used by polyhedron grains"):
+            sim.set_contact_law(0, 0, **{key: 0.05})
+    assert sim.contact_law(0, 0)["rolling_friction"] == 0.0
+    sim.set_contact_law(0, 0, friction=0.4)  # the rest of the law may change
+    assert sim.contact_law(0, 0)["friction"] == 0.4

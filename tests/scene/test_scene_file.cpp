@@ -247,6 +247,61 @@ position = [0.0, 0.0, 0.0]
   }
 }
 
+// Rolling and twisting resistance act on sphere contacts only (docs/scene-file.md): a mixed scene
+// whose spheres have a material of their own with rolling friction, and whose polyhedron pairs
+// have none, is accepted and keeps the spheres' law; the same scene with rolling friction on the
+// sphere-polyhedron pair is refused at that key's line (the corpus tests/scene/bad/ checks the
+// message, rolling_friction_on_polyhedra.toml).
+TEST(ParseScene, RollingFrictionOnSphereMaterialsBesidePolyhedraIsAccepted) {
+  const auto scene_with = [](const std::string& mixed_pair_rolling) {
+    return std::string(R"([time]
+dt = 1e-4
+end_time = 1
+[[materials]]
+name = "sand"
+density = 2500
+[[materials]]
+name = "rock"
+density = 2500
+[[contact_laws]]
+materials = ["sand", "sand"]
+friction = 0.5
+rolling_friction = 0.1
+twisting_friction = 0.05
+[[contact_laws]]
+materials = ["sand", "rock"]
+friction = 0.5
+rolling_friction = )") +
+           mixed_pair_rolling + R"(
+[[contact_laws]]
+materials = ["rock", "rock"]
+friction = 0.5
+[[bodies]]
+shape = "sphere"
+radius = 0.1
+position = [0.0, 0.0, 0.0]
+material = "sand"
+[[bodies]]
+shape = "polyhedron"
+vertices = [[0.1, 0, 0], [-0.1, 0, 0], [0, 0.1, 0], [0, -0.1, 0], [0, 0, 0.1], [0, 0, -0.1]]
+faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+position = [1.0, 0.0, 0.0]
+material = "rock"
+)";
+  };
+  const Scene scene = parse_scene(scene_with("0"), "mixed.toml");
+  EXPECT_EQ(scene.model.contact_laws.get(0, 0).rolling_friction, 0.1);
+  EXPECT_EQ(scene.model.contact_laws.get(0, 0).twisting_friction, 0.05);
+  EXPECT_FALSE(scene.model.contact_laws.get(0, 1).resists_rotation());
+  try {
+    parse_scene(scene_with("0.1"), "mixed.toml");
+    FAIL() << "rolling friction on a sphere-polyhedron pair was accepted";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.key, "contact_laws[1].rolling_friction") << error.what();
+    EXPECT_EQ(error.line, 18);
+  }
+}
+
 TEST(TimeControl, AutoStepAndRestCriterionFollowTheScene) {
   const std::string grid = "type = \"cubic_grid\"\ncells_per_side = 4\nradius_min = 3.75\nradius_max = 5.0\n";
   const Scene automatic =
