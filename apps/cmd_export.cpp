@@ -74,6 +74,19 @@ int export_command(const ExportArguments& args) {
         "# exported by rubble export: {}; every grain with its state at t = {:.17g} s, step {} of that run.\n"
         "# The scene starts again at t = 0; dt and the rest thresholds are the values that run used.\n",
         saved.description, time, step);
+    if (scene.inflow.active()) {
+      // An inflow run: the bodies in play (the state's bodies before the first one not inserted,
+      // NaN in a snapshot), as grains of their own; the grains the inflow had still to insert are left out.
+      std::size_t in_play = scene.state.body_count();
+      while (in_play > scene.inflow.first_body && !scene.state.position[in_play - 1].allFinite()) --in_play;
+      text += fmt::format(
+          "# The run's [[inflow]] had inserted {} of its {} grains: they are [[bodies]] here "
+          "(numbered before the walls now); the inflow is left out.\n",
+          in_play - scene.inflow.first_body, scene.inflow.grains.size());
+      scene.model = model_prefix(scene.model, in_play);
+      scene.state = state_prefix(scene.state, in_play);
+      scene.inflow = InflowPlan{};
+    }
     text += scene_to_toml(scene);
     // The file must read back: parse it once before writing it.
     parse_scene(text, args.output == "-" ? "<rubble export>" : args.output);

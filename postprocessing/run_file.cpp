@@ -375,10 +375,11 @@ void RunFile::append_series(const SeriesRow& row) {
   }
 }
 
-void RunFile::write_snapshot(const State& state, const ContactList& contacts, bool interrupted) {
+void RunFile::write_snapshot(const State& state, const ContactList& contacts, bool interrupted,
+                             std::span<const std::pair<std::string_view, std::int64_t>> attributes) {
   Impl& f = *impl_;
   const hdf5::QuietErrors quiet;
-  f.guarded([&] { write_snapshot_now(state, contacts, interrupted); });
+  f.guarded([&] { write_snapshot_now(state, contacts, interrupted, attributes); });
 }
 
 void RunFile::set_status(RunStatus status, std::string_view reason) {
@@ -399,7 +400,8 @@ void RunFile::set_parameters(std::span<const RunParameter> parameters) {
   });
 }
 
-void RunFile::write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted) {
+void RunFile::write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted,
+                                 std::span<const std::pair<std::string_view, std::int64_t>> attributes) {
   Impl& f = *impl_;
   std::array<char, 16> name{};
   std::snprintf(name.data(), name.size(), "%06lld", static_cast<long long>(f.snapshots));
@@ -408,6 +410,7 @@ void RunFile::write_snapshot_now(const State& state, const ContactList& contacts
   hdf5::write_attribute(g, "time", state.time, f.path);
   hdf5::write_attribute(g, "step", state.step, f.path);
   hdf5::write_attribute(g, "interrupted", std::int64_t{interrupted ? 1 : 0}, f.path);
+  for (const auto& [attribute, value] : attributes) hdf5::write_attribute(g, std::string(attribute), value, f.path);
 
   const std::size_t n = state.body_count();
   if (n != f.body_count || state.orientation.size() != n || state.velocity.size() != n ||

@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "core/contact.hpp"
@@ -123,8 +124,10 @@ class RunFile {
   /// Writes /snapshots/NNNNNN (NNNNNN = number of snapshots written before, 6 digits) with the
   /// state of every body and every contact point of the list, and a row of /snapshot_time and
   /// /snapshot_step. `interrupted` marks the state at a stop by signal (@interrupted = 1), which
-  /// reopen() removes.
-  void write_snapshot(const State& state, const ContactList& contacts, bool interrupted = false);
+  /// reopen() removes. `attributes` are more integer attributes of the snapshot (an inflow run's
+  /// bodies_in_play, inflow_placed and inflow_waiting: docs/output-format.md).
+  void write_snapshot(const State& state, const ContactList& contacts, bool interrupted = false,
+                      std::span<const std::pair<std::string_view, std::int64_t>> attributes = {});
   /// Sets /run@status and /run@stop_reason, a sentence saying which criterion ended the run
   /// (written to disk with the next flush).
   void set_status(RunStatus status, std::string_view reason = {});
@@ -157,7 +160,8 @@ class RunFile {
  private:
   struct Impl;
   explicit RunFile(std::unique_ptr<Impl> impl);
-  void write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted);
+  void write_snapshot_now(const State& state, const ContactList& contacts, bool interrupted,
+                          std::span<const std::pair<std::string_view, std::int64_t>> attributes);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -289,11 +289,11 @@ VtkSeries::VtkSeries(const fs::path& directory, const Model& model, const VtkSer
   impl_->model = &model;
   impl_->options = options;
   impl_->times = options.earlier_times;
-  for (std::size_t i = 0; i < model.body_count(); ++i) {
-    impl_->has_spheres |= model.shape_kind[i] == ShapeKind::sphere;
-    impl_->has_polyhedra |= model.shape_kind[i] == ShapeKind::polyhedron;
-    impl_->has_walls |= !model.is_grain(i);
-  }
+  // By the shape tables, which hold every grain's shape: a run with an inflow hands over the
+  // model of the bodies in play, which gains the inflow's grains (of the same tables) later.
+  impl_->has_spheres = !model.spheres.empty();
+  impl_->has_polyhedra = !model.polyhedra.empty();
+  for (std::size_t i = 0; i < model.body_count(); ++i) impl_->has_walls |= !model.is_grain(i);
   if (impl_->has_spheres) impl_->kinds.push_back("spheres");
   if (impl_->has_polyhedra) impl_->kinds.push_back("polyhedra");
   impl_->kinds.push_back("contacts");

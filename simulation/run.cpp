@@ -69,6 +69,8 @@ class RunSession {
   void open_run_file_to_resume();
   void start_rest_watch();
   void write_snapshot(bool interrupted);
+  void insert_inflow_grains();
+  bool inflow_complete() const { return model_.body_count() == scene_.model.body_count(); }
   void write_checkpoint_now();
   bool step_and_record();
   StepReport take_step();
@@ -78,11 +80,20 @@ class RunSession {
   void checkpoint_if_due(std::int64_t done, Clock::time_point step_end, bool forced);
   void print_progress(const StepReport& report, const SeriesRow& row, Clock::time_point now, bool at_rest);
   std::string stop_reason() const;
+  std::string inflow_progress() const;
+  std::string stop_reason_before_inflow() const;
   RunSummary finish();
 
   const Scene& scene_;
+  /// With an inflow: the model cut to the bodies in play (simulation/inflow.hpp), which gains
+  /// each grain the inflow inserts; empty otherwise.
+  Model in_play_;
+  /// The model the step sees: scene.model, or in_play_ with an inflow.
   const Model& model_;
   const RunOptions& run_;
+  /// The step's options: run_.step, with an inflow the alert distance resolved from the whole
+  /// model (the bodies in play would give another value at each insertion).
+  StepOptions step_options_;
   const RunControl& control_;
   const double h_;              ///< s, the time step
   const fs::path directory_;    ///< the output folder
@@ -110,12 +121,14 @@ class RunSession {
   std::optional<double> potential_;  ///< the grains' potential energy after the last step, J
   double alert_distance_ = 0.0;
   bool tunnelling_warned_ = false;
+  std::size_t inflow_waiting_ = 0;  ///< inflow grains due but not in play (no room in their region)
 };
 
 RunSession::RunSession(const Scene& scene, State initial_state, const RunControl& control)
     : scene_(scene),
-      model_(scene.model),
+      model_(scene.inflow.active() ? in_play_ : scene.model),
       run_(scene.run),
+      step_options_(scene.run.step),
       control_(control),
       h_(scene.run.step.integrator.time_step),
       directory_(scene.run.output.directory),
@@ -129,6 +142,19 @@ RunSession::RunSession(const Scene& scene, State initial_state, const RunControl
     control_.warnings->flush();
   }
   summary_.run_file = directory_ / "run.h5";
+  if (scene_.inflow.active()) {
+    // The bodies in play: the scene's own, or those of the checkpoint's state.
+    const std::size_t in_play =
+        control_.resume != nullptr ? control_.resume->state.body_count() : scene_.inflow.first_body;
+    if (in_play < scene_.inflow.first_body || in_play > scene_.model.body_count()) {
+      throw CheckpointError(fmt::format("checkpoint of {} bodies, the scene has {} and {} inflow grains", in_play,
+                                        scene_.inflow.first_body,
+                                        scene_.model.body_count() - scene_.inflow.first_body));
+    }
+    in_play_ = model_prefix(scene_.model, in_play);
+    state_ = state_prefix(state_, in_play);
+    step_options_.detection.alert_distance = resolve_alert_distance(scene_.model, run_.step.detection);
+  }
   for (std::size_t s = 0; s < static_cast<std::size_t>(Stage::count); ++s) {
     stage_names_.push_back(stage_name(static_cast<Stage>(s)));
   }
@@ -177,12 +203,12 @@ void RunSession::open_new_run() {
   progress_.snapshot_period = snapshot_period(run_, total_steps_);
   const std::vector<RunParameter> parameters = run_parameters(scene_, progress_.snapshot_period);
   output([&] {
-    file_.emplace(RunFile::create(summary_.run_file, model_, control_.scene_text, stage_names_, parameters));
+    file_.emplace(RunFile::create(summary_.run_file, scene_.model, control_.scene_text, stage_names_, parameters));
   });
 }
 
 void RunSession::resume(const Checkpoint& from) {
-  if (from.state.body_count() != model_.body_count()) {
+  if (from.state.body_count() != model_.body_count()) {  // with an inflow: in_play_ is the checkpoint's prefix
     throw CheckpointError(
         fmt::format("checkpoint of {} bodies, the scene has {}", from.state.body_count(), model_.body_count()));
   }
@@ -236,7 +262,7 @@ void RunSession::open_run_file_to_resume() {
   }
   const std::vector<RunParameter> parameters = run_parameters(scene_, progress_.snapshot_period);
   output([&] {
-    file_.emplace(RunFile::create(summary_.run_file, model_, control_.scene_text, stage_names_, parameters));
+    file_.emplace(RunFile::create(summary_.run_file, scene_.model, control_.scene_text, stage_names_, parameters));
   });
   first_snapshot_pending_ = true;
   progress_.series_rows = 0;
@@ -274,9 +300,39 @@ void RunSession::start_rest_watch() {
 /// A snapshot of the current state to the run file and the VTK series.
 void RunSession::write_snapshot(bool interrupted) {
   output([&] {
-    file_->write_snapshot(state_, workspace_.carry.contacts, interrupted);
+    if (scene_.inflow.active()) {
+      // Every body of the model, those not in play yet as NaN, and the inflow's counts.
+      const auto placed = static_cast<std::int64_t>(model_.body_count() - scene_.inflow.first_body);
+      const std::array<std::pair<std::string_view, std::int64_t>, 3> counts{
+          {{"bodies_in_play", static_cast<std::int64_t>(model_.body_count())},
+           {"inflow_placed", placed},
+           {"inflow_waiting", static_cast<std::int64_t>(inflow_waiting_)}}};
+      file_->write_snapshot(state_with_waiting_bodies(state_, scene_.model.body_count()), workspace_.carry.contacts,
+                            interrupted, counts);
+    } else {
+      file_->write_snapshot(state_, workspace_.carry.contacts, interrupted);
+    }
     if (vtk_) vtk_->write(state_, workspace_.carry.contacts);
   });
+}
+
+/// The inflow grains due by now enter before the step (simulation/inflow.hpp). A grain that
+/// finds no room waits (and those due after it); the progress says so when it starts waiting.
+void RunSession::insert_inflow_grains() {
+  if (!scene_.inflow.active() || inflow_complete()) return;
+  const std::size_t waiting_before = inflow_waiting_;
+  const InflowInsertion insertion = insert_due_grains(scene_.inflow, scene_.model, in_play_, state_);
+  grain_count_ += insertion.placed;
+  inflow_waiting_ = insertion.waiting;
+  if (insertion.waiting > 0 && waiting_before == 0 && control_.progress) {
+    const InflowGrain& grain = scene_.inflow.grains[insertion.blocked_body - scene_.inflow.first_body];
+    const Inflow& inflow = scene_.inflow.inflows[static_cast<std::size_t>(grain.inflow)];
+    *control_.progress << fmt::format(
+        "rubble run: inflow[{}]: step {} (t = {:.6g} s): no room for grain {} (body {}) after {} random positions "
+        "in its region; {} due grain(s) wait for room (run.h5 snapshots: @inflow_waiting)\n",
+        grain.inflow, state_.step, state_.time, grain.ordinal, insertion.blocked_body, inflow.attempts,
+        insertion.waiting);
+  }
 }
 
 void RunSession::write_checkpoint_now() {
@@ -301,7 +357,7 @@ RunSummary RunSession::run() {
   last_progress_ = start_;
   last_checkpoint_time_ = start_;
   if (first_snapshot_pending_) write_snapshot(false);
-  alert_distance_ = resolve_alert_distance(model_, run_.step.detection);
+  alert_distance_ = resolve_alert_distance(model_, step_options_.detection);
   while (state_.step < progress_.end_step) {
     if (!step_and_record()) break;
   }
@@ -311,6 +367,7 @@ RunSummary RunSession::run() {
 /// One step and what follows it: the series row, the rest watch, a snapshot, a checkpoint and a
 /// progress line when due. Returns false when the run must stop (a stop request, or at rest).
 bool RunSession::step_and_record() {
+  insert_inflow_grains();
   const auto step_start = Clock::now();
   const StepReport report = take_step();
   const auto step_end = Clock::now();
@@ -321,7 +378,8 @@ bool RunSession::step_and_record() {
   output([&] { file_->append_series(row); });
   account(report, step_seconds);
   const std::int64_t done = state_.step - progress_.first_step;
-  const bool at_rest = run_.until_rest && grain_count_ > 0 &&
+  // A pour is not at rest before its last grain is in: the watcher starts after it.
+  const bool at_rest = run_.until_rest && grain_count_ > 0 && inflow_complete() &&
                        rest_.update(rest_sample(model_, state_, workspace_.carry.contacts, run_.rest.quantile));
   const bool at_end = state_.step == progress_.end_step || at_rest;
   if (done % progress_.snapshot_period == 0 || at_end) write_snapshot(false);
@@ -356,7 +414,7 @@ StepReport RunSession::take_step() {
   StepReport report;
   std::optional<Problem> problem;
   try {
-    report = step(model_, state_, workspace_, run_.step);
+    report = step(model_, state_, workspace_, step_options_);
   } catch (const std::runtime_error&) {
     // A non-finite velocity makes the midpoint configuration non-finite, and detection refuses
     // it before the end-of-step check below: report it as that check would.
@@ -379,7 +437,7 @@ StepReport RunSession::take_step() {
 
 /// Names the step, body and first bad stage in the run file's status and a NumericalFailure.
 void RunSession::fail_numerically(Problem problem) {
-  const std::string stage = locate_failure(model_, before_, workspace_, run_.step, control_.max_speed, problem);
+  const std::string stage = locate_failure(model_, before_, workspace_, step_options_, control_.max_speed, problem);
   try {
     file_->set_status(RunStatus::numerical_failure,
                       fmt::format("numerical failure at step {} (t = {:.6g} s): body {}: {}", state_.step, state_.time,
@@ -449,17 +507,35 @@ void RunSession::print_progress(const StepReport& report, const SeriesRow& row, 
     if (at_rest) eta_text = "0s (at rest)";
   }
   *control_.progress << fmt::format(
-      "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J{}  elapsed {}  "
+      "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J{}{}  elapsed {}  "
       "ETA {}\n",
       state_.step, progress_.end_step, state_.time, report.contacts, report.solver.iterations, report.solver.residual,
-      row.kinetic_energy, run_.until_rest ? "  " + rest_progress(rest_, state_.time) : std::string(),
+      row.kinetic_energy, inflow_progress(), run_.until_rest ? "  " + rest_progress(rest_, state_.time) : std::string(),
       format_duration(elapsed), eta_text);
   control_.progress->flush();
   last_progress_ = now;
 }
 
+/// "  inflow P/T grains (W waiting)" for a run with an inflow, else nothing.
+std::string RunSession::inflow_progress() const {
+  if (!scene_.inflow.active()) return {};
+  return fmt::format("  inflow {}/{} grains{}", model_.body_count() - scene_.inflow.first_body,
+                     scene_.inflow.grains.size(),
+                     inflow_waiting_ > 0 ? fmt::format(" ({} waiting)", inflow_waiting_) : std::string());
+}
+
 /// Which criterion ended the run, in words (/run@stop_reason, docs/output-format.md).
 std::string RunSession::stop_reason() const {
+  std::string reason = stop_reason_before_inflow();
+  if (scene_.inflow.active() && !inflow_complete()) {
+    reason += fmt::format("; inflow: {} of {} grains inserted, {} due and waiting for room",
+                          model_.body_count() - scene_.inflow.first_body, scene_.inflow.grains.size(), inflow_waiting_);
+  }
+  return reason;
+}
+
+/// Which criterion ended the run, before an inflow's note.
+std::string RunSession::stop_reason_before_inflow() const {
   if (summary_.interrupted) {
     return fmt::format("stopped by a signal at step {} (t = {:.6g} s)", state_.step, state_.time);
   }

@@ -5,6 +5,7 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "simulation/inflow.hpp"
 #include "simulation/initial_conditions.hpp"
 #include "simulation/run_control.hpp"
 #include "simulation/step.hpp"
@@ -50,6 +51,10 @@ struct Scene {
   /// The scene's [[initial_conditions]], already applied to `state`; kept to be applied again to
   /// the state a branch starts from (`rubble run SCENE --from RUN`).
   std::vector<InitialCondition> initial_conditions;
+  /// The scene's [[inflow]] sources and their grains, the model's last bodies (after the walls),
+  /// not in play until inserted during the run (simulation/inflow.hpp). In `state` they wait at
+  /// their region's centre at rest; `rubble run` steps only the bodies in play.
+  InflowPlan inflow;
 };
 
 }  // namespace rubble

@@ -289,4 +289,24 @@ const std::vector<SectionKey<InitialCondition>>& initial_condition_keys() {
   return keys;
 }
 
+const std::vector<SectionKey<ByHand>>& inflow_keys() {
+  static const std::vector<SectionKey<ByHand>> keys = [] {
+    // The grains' keys are a generator's (shape, size law, material, velocity) without `type`:
+    // read by the same code (scene_generators.cpp); then the inflow's own.
+    std::vector<SectionKey<ByHand>> grain_keys;
+    for (const SectionKey<ByHand>& key : generator_common_keys()) {
+      if (key.name != "type") grain_keys.push_back(key);
+    }
+    return joined<ByHand>(
+        grain_keys,
+        {{.name = "count", .required = true, .type = "integer", .doc = "grains inserted in all"},
+         {.name = "rate", .required = true, .type = "number", .doc = "grains per second"},
+         {.name = "start_time", .type = "number", .doc = "s, when the first grain is due"},
+         {.name = "region_min", .required = true, .type = "vector", .doc = "m, where the grains' centres appear"},
+         {.name = "region_max", .required = true, .type = "vector", .doc = "m, > region_min on every axis"},
+         {.name = "attempts", .type = "integer", .doc = "positions tried per grain and step before it waits"}});
+  }();
+  return keys;
+}
+
 }  // namespace rubble::scene_detail

@@ -15,6 +15,7 @@ void check_contact_law_coverage(const SceneDraft& draft) {
   std::vector<bool> grain_material(static_cast<std::size_t>(n), false);
   std::vector<bool> wall_material(static_cast<std::size_t>(n), false);
   for (const GrainSpec& g : draft.grains) grain_material[static_cast<std::size_t>(g.material)] = true;
+  for (const GrainSpec& g : draft.inflow_grains) grain_material[static_cast<std::size_t>(g.material)] = true;
   for (const WallSpec& w : draft.walls) wall_material[static_cast<std::size_t>(w.material)] = true;
   for (int a = 0; a < n; ++a) {
     if (!grain_material[static_cast<std::size_t>(a)]) continue;

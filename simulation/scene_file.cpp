@@ -35,7 +35,32 @@ SceneError::SceneError(std::string file_, int line_, std::string key_, std::stri
 namespace scene_detail {
 namespace {
 
-/// Grains first (bodies then generators, in file order), then walls.
+/// The inflow grains, after the walls (never selected by [[initial_conditions]]: not in play),
+/// waiting at rest at their region's centre until the run inserts them.
+void add_inflow_grains(SceneDraft& draft) {
+  Model& model = draft.scene.model;
+  State& state = draft.scene.state;
+  InflowPlan& plan = draft.scene.inflow;
+  plan.first_body = model.body_count();
+  for (GrainSpec& g : draft.inflow_grains) {
+    if (g.polyhedron) {
+      add_polyhedron_grain(model, *g.polyhedron, g.material);
+      g.polyhedron.reset();
+    } else {
+      add_sphere(model, g.radius, g.material);
+    }
+  }
+  state.position.reserve(model.body_count());
+  for (const InflowGrain& grain : plan.grains) {
+    const Inflow& inflow = plan.inflows[static_cast<std::size_t>(grain.inflow)];
+    state.position.push_back(0.5 * (inflow.region_min + inflow.region_max));
+    state.orientation.push_back(Quat::Identity());
+    state.velocity.push_back(Vec3::Zero());
+    state.angular_velocity.push_back(Vec3::Zero());
+  }
+}
+
+/// Grains first (bodies then generators, in file order), then walls, then the inflow grains.
 void build(SceneDraft& draft) {
   Model& model = draft.scene.model;
   State& state = draft.scene.state;
@@ -80,6 +105,7 @@ void build(SceneDraft& draft) {
     draft.root.fail(draft.condition_nodes[*k], "initial_conditions[" + std::to_string(*k) + "]",
                     "selects no grain (no free grain of its material has its centre in its region)");
   }
+  add_inflow_grains(draft);
 }
 
 Scene parse(const std::string& file, const toml::table& root, const std::string& default_name) {
@@ -98,8 +124,10 @@ Scene parse(const std::string& file, const toml::table& root, const std::string&
   parse_bodies(draft);
   parse_generators(draft);
   parse_initial_conditions(draft);
-  if (draft.grains.empty()) {
-    draft.root.fail(nullptr, "", "the scene has no grains: expected at least one [[bodies]] or [[generators]] entry");
+  parse_inflows(draft);
+  if (draft.grains.empty() && draft.inflow_grains.empty()) {
+    draft.root.fail(nullptr, "",
+                    "the scene has no grains: expected at least one [[bodies]], [[generators]] or [[inflow]] entry");
   }
   check_contact_law_coverage(draft);
   check_rotation_resistance_shapes(draft);

@@ -57,6 +57,7 @@ std::string default_scene_toml(DefaultScene variant = DefaultScene::spheres);
 /// expanded), such that parse_scene(scene_to_toml(s)) gives back the same model and state when
 /// grains come before walls in s (as parse_scene orders them). Polyhedral grains are written with
 /// their body-frame vertices and faces (read back up to round-off in the mass properties).
+/// Throws std::invalid_argument for a scene with [[inflow]] entries (its grains are not placed).
 std::string scene_to_toml(const Scene& scene);
 
 }  // namespace rubble

@@ -4,6 +4,7 @@
 // read here, by hand (they configure a packing, and check each other: sizes, regions, counts).
 #include <algorithm>
 #include <random>
+#include <tuple>
 
 #include "preprocessing/grain_shapes.hpp"
 #include "preprocessing/packing.hpp"
@@ -223,7 +224,74 @@ std::vector<GrainSpec> generator_grains(const TableReader& entry, std::size_t in
   return made;
 }
 
+/// The box of an entry's region_min/region_max (centres), region_max > region_min on every axis.
+std::pair<Vec3, Vec3> parse_region(const TableReader& entry) {
+  const Vec3 low = entry.vec3("region_min", coordinate());
+  const Vec3 high = entry.vec3("region_max", coordinate());
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!(high[axis] > low[axis])) {
+      entry.fail_key("region_max", "expected region_max > region_min on every axis, got " + show_vec3(high) + " vs " +
+                                       show_vec3(low));
+    }
+  }
+  return {low, high};
+}
+
+/// The grains of one inflow: sizes from the law, shapes as a generator's (each from its own
+/// seed), placed nowhere yet (insert_due_grains places them during the run).
+std::vector<GrainSpec> inflow_grains(const TableReader& entry, std::size_t index, std::uint64_t count,
+                                     const SizeRange& sizes, const GrainRecipe& recipe, std::uint64_t seed) {
+  std::mt19937_64 size_rng(derive_seed(seed, 0x53495A45ULL));
+  std::vector<PackedGrain> balls(count);
+  for (PackedGrain& ball : balls) ball.radius = draw_radius(sizes, size_rng);
+  return generator_grains(entry, index, balls, recipe, seed);
+}
+
 }  // namespace
+
+void parse_inflows(SceneDraft& draft) {
+  const auto entries = draft.root.tables("inflow");
+  // A stream of its own, so that adding an inflow changes no generator's grains.
+  const std::uint64_t inflow_seed = derive_seed(draft.scene.run.seed, 0x494E464C4F57ULL);
+  std::vector<std::vector<GrainSpec>> made(entries.size());
+  for (std::size_t index = 0; index < entries.size(); ++index) {
+    const TableReader& entry = entries[index];
+    const std::string shape = entry.optional_choice("shape", {"sphere", "polyhedron", "mix"}).value_or("sphere");
+    std::vector<std::string_view> allowed = key_names(inflow_keys());
+    for (const std::string_view name : key_names(generator_shape_keys(shape))) allowed.push_back(name);
+    entry.allow_only(allowed, "for an inflow of shape = \"" + shape + "\"");
+    Inflow inflow;
+    inflow.count = static_cast<std::uint64_t>(entry.integer("count", 1, static_cast<std::int64_t>(max_packed_grains)));
+    check_memory(draft, entry, "count", inflow.count, shape != "sphere");
+    inflow.rate = entry.number("rate", positive());
+    inflow.start_time = entry.number_or("start_time", 0.0, non_negative());
+    std::tie(inflow.region_min, inflow.region_max) = parse_region(entry);
+    inflow.attempts = static_cast<int>(entry.integer_or("attempts", 100, 1, 1000000));
+    inflow.velocity = entry.vec3_or("velocity", Vec3::Zero());
+    inflow.seed = derive_seed(inflow_seed, index);
+    const SizeRange sizes = parse_sizes(entry);
+    GrainRecipe recipe;
+    recipe.material = material_of(draft, entry);
+    recipe.velocity = inflow.velocity;
+    recipe.polyhedra = shape != "sphere";
+    recipe.polyhedron_fraction = shape == "polyhedron" ? 1.0 : 0.0;
+    if (shape != "sphere") recipe.polyhedron_options = parse_random_polyhedron_options(entry);
+    if (shape == "mix") recipe.polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
+    made[index] = inflow_grains(entry, index, inflow.count, sizes, recipe, inflow.seed);
+    for (std::uint64_t k = 0; k < inflow.count; ++k) {
+      draft.scene.inflow.grains.push_back(
+          {static_cast<int>(index), k, inflow.start_time + static_cast<double>(k) / inflow.rate});
+    }
+    draft.scene.inflow.inflows.push_back(inflow);
+  }
+  // Bodies in order of due time (ties: file order, then number), so that those in play are a prefix.
+  std::vector<InflowGrain>& order = draft.scene.inflow.grains;
+  std::stable_sort(order.begin(), order.end(),
+                   [](const InflowGrain& a, const InflowGrain& b) { return a.due_time < b.due_time; });
+  for (const InflowGrain& grain : order) {
+    draft.inflow_grains.push_back(made[static_cast<std::size_t>(grain.inflow)][grain.ordinal]);
+  }
+}
 
 void parse_generators(SceneDraft& draft) {
   const auto entries = draft.root.tables("generators");

@@ -42,6 +42,7 @@ const std::vector<SectionKey<Scene>>& top_level_keys() {
       section("bodies", "grains one by one"),
       section("generators", "grains by the thousand"),
       section("initial_conditions", "a rigid motion given to groups of grains"),
+      section("inflow", "grains inserted during the run at a rate"),
   };
   return keys;
 }

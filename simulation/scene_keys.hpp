@@ -128,6 +128,9 @@ const std::vector<SectionKey<ByHand>>& generator_shape_keys(std::string_view sha
 const std::vector<SectionKey<ByHand>>& generator_type_keys(std::string_view type);
 /// The [[initial_conditions]] keys.
 const std::vector<SectionKey<InitialCondition>>& initial_condition_keys();
+/// The [[inflow]] keys besides a grain shape's (generator_shape_keys): the grains' (a
+/// generator's common keys but `type`), then the inflow's own.
+const std::vector<SectionKey<ByHand>>& inflow_keys();
 
 /// The names of a section's keys, for TableReader::allow_only.
 template <class Options>

@@ -80,6 +80,9 @@ struct SceneDraft {
   std::vector<GrainSpec> grains;
   std::vector<PrescribedMotion> grain_motions;     ///< of the driven [[bodies]]
   std::vector<const toml::node*> condition_nodes;  ///< of the [[initial_conditions]] entries
+  /// The [[inflow]] grains (shape, size, material), in order of due time (scene.inflow.grains):
+  /// the model's last bodies, placed during the run.
+  std::vector<GrainSpec> inflow_grains;
 };
 
 // scene_sections.cpp: [time], [solver], [detection], [gravity], [output].
@@ -107,8 +110,10 @@ RandomPolyhedronOptions parse_random_polyhedron_options(const TableReader& entry
 /// Appends a grain, refusing more than max_packed_grains in a scene.
 void add_grain(SceneDraft& draft, const GrainSpec& grain);
 
-// scene_generators.cpp: [[generators]].
+// scene_generators.cpp: [[generators]] and [[inflow]] (grains of a generator's kinds, inserted
+// during the run: simulation/inflow.hpp).
 void parse_generators(SceneDraft& draft);
+void parse_inflows(SceneDraft& draft);
 
 // scene_checks.cpp: the checks of the scene as a whole, before its bodies are made.
 /// Every pair of materials that can touch (grain-grain, grain-wall) needs a law, unless a

@@ -42,6 +42,13 @@ void check_mass_properties(const Model& model) {
 Simulation::Simulation(Scene scene, std::string scene_text, std::string scene_source)
     : scene_(std::move(scene)), scene_text_(std::move(scene_text)), scene_source_(std::move(scene_source)) {
   check_mass_properties(scene_.model);
+  if (scene_.inflow.active()) {
+    // Its grains enter between steps in the run loop of rubble run (simulation/inflow.hpp), which
+    // this class does not share: refused rather than stepped with the grains still waiting.
+    throw std::invalid_argument(
+        "the scene has [[inflow]] entries, which only `rubble run` inserts: run it with "
+        "rubble run, then read its run.h5 or branch from it");
+  }
   // The state is moved out of the scene: one copy of it, which the numpy views point into.
   state_ = std::move(scene_.state);
   scene_.state = State{};

@@ -272,6 +272,12 @@ TEST(SceneKeys, InitialConditionTableMatchesTheDocs) {
   EXPECT_TRUE(doc_matches("## `[[initial_conditions]]`", scene_detail::initial_condition_keys()));
 }
 
+// [[inflow]]: the grains' keys (a generator's but `type`) and the inflow's own, in one table;
+// the random polyhedra's keys are the generators' (documented there).
+TEST(SceneKeys, InflowTableMatchesTheDocs) {
+  EXPECT_TRUE(doc_matches("## `[[inflow]]`", scene_detail::inflow_keys(), {}, {}, "| key |"));
+}
+
 TEST(SceneKeys, GeneratorTablesMatchTheDocs) {
   const std::string heading = "## `[[generators]]`";
   EXPECT_TRUE(doc_matches(heading, scene_detail::generator_common_keys(), {}, {}, "| key |"));
