@@ -141,7 +141,20 @@ SavedState load_saved_state(const BranchSource& source) {
       try {
         loaded = load_newest_checkpoint(folder);
       } catch (const CheckpointError& error) {
-        throw BranchError(error.what());
+        // None readable (written by an older rubble, whose format this one does not read, or
+        // damaged): the run file's last snapshot is the same state to its precision, written
+        // at the same step when the run ended; said so in the description.
+        const fs::path file = run_file_of(source.path);
+        if (!fs::exists(file)) {
+          throw BranchError(fmt::format("{}; and there is no run file {} to take the last snapshot from", error.what(),
+                                        file.string()));
+        }
+        SavedState saved = from_snapshot(source, file);
+        saved.description += fmt::format(
+            " (no checkpoint of {} could be read: {}; the run file's last snapshot is used instead, which starts "
+            "the branch without the checkpoint's warm start)",
+            folder.string(), error.what());
+        return saved;
       }
       SavedState saved;
       saved.state = std::move(loaded.checkpoint.state);
