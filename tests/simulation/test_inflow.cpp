@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 
 #include "postprocessing/run_reader.hpp"
@@ -145,6 +146,29 @@ TEST(Inflow, PourInsertsRateTimesTimeGrains) {
   EXPECT_EQ(bodies_in_play(reader.read_snapshot(reader.snapshot_count() - 1).state), walls + count);
   const RunSeries series = reader.read_series();
   EXPECT_GT(series.contacts.back(), 0) << "the grains must touch: the resume test checks the warm start";
+}
+
+// The run file of a pour: the documented layout (check_run_file.py, layout only: the snapshot
+// attributes @bodies_in_play, @inflow_placed, @inflow_waiting are documented as "Only with
+// [[inflow]]") and, read by h5py, counts that agree with the NaN rows.
+TEST(Inflow, RunFileHasTheDocumentedCounts) {
+  const Scene scene = pour_scene("run_file");
+  const RunSummary summary = run_scene(scene, control_for());
+  const std::string layout = std::string("/usr/bin/python3 ") + RUBBLE_CHECK_RUN_FILE_SCRIPT + " " +
+                             summary.run_file.string() + " - " + RUBBLE_SOURCE_DIR + "/docs/output-format.md";
+  EXPECT_EQ(std::system(layout.c_str()), 0) << layout;
+  const std::string counts = std::string("/usr/bin/python3 -c '\n") +
+                             "import sys, h5py, numpy as np\n"
+                             "f = h5py.File(sys.argv[1], \"r\")\n"
+                             "for name, s in f[\"snapshots\"].items():\n"
+                             "    finite = int(np.isfinite(s[\"position\"][:, 0]).sum())\n"
+                             "    assert s.attrs[\"bodies_in_play\"] == finite, (name, finite)\n"
+                             "    assert s.attrs[\"inflow_placed\"] == finite - 5, name\n"
+                             "    assert s.attrs[\"inflow_waiting\"] == 0, name\n"
+                             "assert finite == 65\n"
+                             "' " +
+                             summary.run_file.string();
+  EXPECT_EQ(std::system(counts.c_str()), 0) << counts;
 }
 
 /// The overlap of ball (x, r) with body b of the state (its bounding ball, or a plane wall's
