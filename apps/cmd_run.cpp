@@ -325,8 +325,10 @@ void set_run_control(const RunArguments& args, RunControl& control) {
 /// (`branched_from` when not null) or a resumed run goes on (`resumed` when not null).
 void print_run_header(std::ostream& out, const Scene& scene, const std::string* branched_from,
                       const LoadedCheckpoint* resumed) {
-  out << "rubble run: " << scene.name << ": " << scene.model.body_count()
-      << " bodies, dt = " << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
+  out << "rubble run: " << scene.name << ": " << scene.model.body_count() << " bodies"
+      << (scene.inflow.active() ? fmt::format(" ({} of them enter by [[inflow]])", scene.inflow.grains.size())
+                                : std::string())
+      << ", dt = " << scene.run.step.integrator.time_step << (scene.run.automatic_time_step ? " s (auto)" : " s")
       << (scene.run.until_rest ? fmt::format(", until at rest ({}) or t = ", describe_rest_criterion(scene.run.rest))
                                : std::string(", until t = "))
       << scene.run.end_time << " s\n";

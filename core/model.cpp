@@ -103,4 +103,43 @@ void set_prescribed_velocities(const Model& model, State& state) {
   }
 }
 
+namespace {
+
+template <class T>
+std::vector<T> first(const std::vector<T>& values, std::size_t n) {
+  return std::vector<T>(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(std::min(n, values.size())));
+}
+
+}  // namespace
+
+Model model_prefix(const Model& model, std::size_t bodies) {
+  Model prefix = model;
+  prefix.shape_kind = first(model.shape_kind, bodies);
+  prefix.shape_index = first(model.shape_index, bodies);
+  prefix.material = first(model.material, bodies);
+  prefix.mass = first(model.mass, bodies);
+  prefix.inverse_mass = first(model.inverse_mass, bodies);
+  prefix.principal_inertia = first(model.principal_inertia, bodies);
+  prefix.inverse_inertia = first(model.inverse_inertia, bodies);
+  prefix.bounding_radius = first(model.bounding_radius, bodies);
+  prefix.volume = first(model.volume, bodies);
+  prefix.motion_of_body = first(model.motion_of_body, bodies);
+  prefix.driven_bodies.clear();
+  for (const std::size_t b : model.driven_bodies) {
+    if (b < bodies) prefix.driven_bodies.push_back(b);
+  }
+  return prefix;
+}
+
+State state_prefix(const State& state, std::size_t bodies) {
+  State prefix;
+  prefix.time = state.time;
+  prefix.step = state.step;
+  prefix.position = first(state.position, bodies);
+  prefix.orientation = first(state.orientation, bodies);
+  prefix.velocity = first(state.velocity, bodies);
+  prefix.angular_velocity = first(state.angular_velocity, bodies);
+  return prefix;
+}
+
 }  // namespace rubble

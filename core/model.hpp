@@ -181,6 +181,13 @@ void drive_body(Model& model, int body, PrescribedMotion motion);
 /// (a scene's start, or the state a branch starts from).
 void set_prescribed_velocities(const Model& model, State& state);
 
+/// The model of the first `bodies` bodies: the per-body arrays cut there, the shape, material,
+/// contact-law and motion tables whole (a run with an [[inflow]] steps the bodies in play, always
+/// the first ones: simulation/inflow.hpp).
+Model model_prefix(const Model& model, std::size_t bodies);
+/// The state of the first `bodies` bodies (time and step kept).
+State state_prefix(const State& state, std::size_t bodies);
+
 /// World-frame inverse inertia tensor R diag(I^-1) R^T of a body with the given orientation.
 inline Mat3 world_inverse_inertia(const Model& model, std::size_t body, const Quat& orientation) {
   const Mat3 rotation = orientation.toRotationMatrix();

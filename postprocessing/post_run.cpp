@@ -67,17 +67,25 @@ struct SnapshotMetrics {
 };
 
 /// Metrics of every chosen snapshot, each checked finite; each snapshot also into `vtk` if given.
+/// A run with [[inflow]] (`in_play` given): each snapshot's bodies in play, in `in_play` (the
+/// model `vtk` was made with), the grains not inserted yet left out.
 SnapshotMetrics compute_snapshot_metrics(const RunReader& reader, const fs::path& run_file, const PostOptions& options,
-                                         VtkSeries* vtk) {
+                                         Model* in_play, VtkSeries* vtk) {
   const Model& model = reader.model();
   SnapshotMetrics result;
   const std::vector<std::size_t> indices = chosen_snapshots(reader.snapshot_count(), options.every);
-  const GrainSizes sizes = grain_sizes(model);  // once per run: one enclosing ball per polyhedron
+  // Once per run: one enclosing ball per polyhedron; by body id, so valid for the bodies in play too.
+  const GrainSizes sizes = grain_sizes(model);
   for (std::size_t k = 0; k < indices.size(); ++k) {
-    const RunSnapshot snapshot = reader.read_snapshot(indices[k]);
+    RunSnapshot snapshot = reader.read_snapshot(indices[k]);
+    if (in_play != nullptr) {
+      snapshot.state = state_prefix(snapshot.state, snapshot.bodies_in_play);
+      if (in_play->body_count() != snapshot.bodies_in_play) *in_play = model_prefix(model, snapshot.bodies_in_play);
+    }
+    const Model& bodies = in_play != nullptr ? *in_play : model;
     post_detail::check_snapshot(run_file, indices[k], snapshot.state);
     result.rows.push_back(
-        metrics_row(compute_metrics(model, sizes, snapshot.state, snapshot.contacts, options.potential)));
+        metrics_row(compute_metrics(bodies, sizes, snapshot.state, snapshot.contacts, options.potential)));
     post_detail::check_metrics(run_file, indices[k], result.rows.back());
     if (vtk != nullptr) vtk->write(snapshot.state, snapshot.contacts);
     if (k + 1 == indices.size()) result.histogram = normal_impulse_histogram(snapshot.contacts, options.histogram_bins);
@@ -179,9 +187,17 @@ std::vector<fs::path> post_process_run(const fs::path& run_file, const PostOptio
 
   // Metrics of every chosen snapshot, the impulse distribution of the last one, VTK on request.
   const double h = options.time_step > 0.0 ? options.time_step : reader.time_step();
+  // A run with [[inflow]] (its first snapshot has bodies not in play): each snapshot's bodies in
+  // play, whose model the VTK series follows (vtk_output.hpp).
+  const bool inflow = reader.snapshot_count() > 0 && reader.read_snapshot(0).bodies_in_play < model.body_count();
+  Model in_play;
+  if (inflow) in_play = model;
   std::unique_ptr<VtkSeries> vtk;
-  if (options.write_vtk) vtk = std::make_unique<VtkSeries>(out / "vtk", model, VtkSeriesOptions{h, 0.0, {}});
-  const SnapshotMetrics metrics = compute_snapshot_metrics(reader, run_file, options, vtk.get());
+  if (options.write_vtk) {
+    vtk = std::make_unique<VtkSeries>(out / "vtk", inflow ? in_play : model, VtkSeriesOptions{h, 0.0, {}});
+  }
+  const SnapshotMetrics metrics =
+      compute_snapshot_metrics(reader, run_file, options, inflow ? &in_play : nullptr, vtk.get());
   write_metrics_files(out, run_file, metrics, written);
   if (vtk) {
     for (const fs::path& collection : vtk->collections()) written.push_back(collection);

@@ -49,12 +49,18 @@ std::vector<AggregateMetrics> every_snapshot_metrics(const RunReader& reader, co
   const GrainSizes sizes = grain_sizes(model);
   const PotentialSettings potential = options.potential_of ? options.potential_of(reader) : PotentialSettings{};
   std::vector<AggregateMetrics> all;
+  Model in_play;  // a run with [[inflow]]: the bodies in play of the snapshot (the others not inserted yet)
   for (std::size_t k = 0; k < reader.snapshot_count(); ++k) {
-    const RunSnapshot snapshot = reader.read_snapshot(k);
+    RunSnapshot snapshot = reader.read_snapshot(k);
+    const bool all_in_play = snapshot.bodies_in_play == model.body_count();
+    if (!all_in_play) {
+      snapshot.state = state_prefix(snapshot.state, snapshot.bodies_in_play);
+      if (in_play.body_count() != snapshot.bodies_in_play) in_play = model_prefix(model, snapshot.bodies_in_play);
+    }
     check_snapshot(run, k, snapshot.state);
     const bool last = k + 1 == reader.snapshot_count();
-    all.push_back(
-        compute_metrics(model, sizes, snapshot.state, snapshot.contacts, last ? potential : PotentialSettings{}));
+    all.push_back(compute_metrics(all_in_play ? model : in_play, sizes, snapshot.state, snapshot.contacts,
+                                  last ? potential : PotentialSettings{}));
     check_metrics(run, k, metrics_row(all.back()));
   }
   return all;

@@ -328,6 +328,14 @@ RunSnapshot RunReader::read_snapshot(std::size_t index) const {
   const std::size_t n = r.model.body_count();
   state.time = hdf5::read_double_attribute(g, "time", where);
   state.step = static_cast<std::int64_t>(hdf5::read_double_attribute(g, "step", where));
+  snapshot.bodies_in_play = n;
+  if (H5Aexists(g, "bodies_in_play") > 0) {
+    const double in_play = hdf5::read_double_attribute(g, "bodies_in_play", where);
+    if (!(in_play >= 0.0 && in_play <= static_cast<double>(n))) {
+      bad(where, "@bodies_in_play = " + std::to_string(in_play) + ", expected 0 to " + std::to_string(n));
+    }
+    snapshot.bodies_in_play = static_cast<std::size_t>(in_play);
+  }
   state.position = read_vec3s(g, "position", n, where);
   const hdf5::Array<double> orientation = hdf5::read_doubles(g, "orientation", where);
   expect_shape(orientation, n, 4, "orientation", where);

@@ -38,6 +38,10 @@ struct RunSeries {
 struct RunSnapshot {
   State state;           ///< time, step, positions, orientations, velocities
   ContactList contacts;  ///< the contacts of the step that ended at that time
+  /// Bodies in play: all of them, or in a run with [[inflow]] the snapshot's @bodies_in_play (the
+  /// later bodies are inflow grains not inserted yet, NaN in `state`; model_prefix and
+  /// state_prefix, core/model.hpp, give the bodies in play).
+  std::size_t bodies_in_play = 0;
 };
 
 /// A run file open for reading. Every problem (not an HDF5 file, not a rubble run file, a newer

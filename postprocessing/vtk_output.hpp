@@ -39,7 +39,9 @@ struct VtkSeriesOptions {
 /// Errors (folder or file not writable) throw std::runtime_error naming the path.
 class VtkSeries {
  public:
-  /// Starts a series for `model` in `directory`.
+  /// Starts a series for `model` in `directory`. The series reads `model` at every write: a run
+  /// with [[inflow]] hands over the model of its bodies in play, which gains bodies between writes
+  /// (the kinds of grain written follow its shape tables).
   VtkSeries(const std::filesystem::path& directory, const Model& model, const VtkSeriesOptions& options = {});
   VtkSeries(VtkSeries&&) noexcept;             ///< takes over the series
   VtkSeries& operator=(VtkSeries&&) noexcept;  ///< takes over the series

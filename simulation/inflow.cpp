@@ -87,47 +87,12 @@ void append_body(const Model& model, std::size_t b, Model& in_play) {
   in_play.motion_of_body.push_back(b < model.motion_of_body.size() ? model.motion_of_body[b] : -1);
 }
 
-template <class T>
-std::vector<T> first(const std::vector<T>& values, std::size_t n) {
-  return std::vector<T>(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(std::min(n, values.size())));
-}
-
 }  // namespace
 
 std::size_t InflowPlan::due_count(double time) const {
   const auto after = std::upper_bound(grains.begin(), grains.end(), time,
                                       [](double t, const InflowGrain& grain) { return t < grain.due_time; });
   return static_cast<std::size_t>(after - grains.begin());
-}
-
-Model model_prefix(const Model& model, std::size_t bodies) {
-  Model prefix = model;
-  prefix.shape_kind = first(model.shape_kind, bodies);
-  prefix.shape_index = first(model.shape_index, bodies);
-  prefix.material = first(model.material, bodies);
-  prefix.mass = first(model.mass, bodies);
-  prefix.inverse_mass = first(model.inverse_mass, bodies);
-  prefix.principal_inertia = first(model.principal_inertia, bodies);
-  prefix.inverse_inertia = first(model.inverse_inertia, bodies);
-  prefix.bounding_radius = first(model.bounding_radius, bodies);
-  prefix.volume = first(model.volume, bodies);
-  prefix.motion_of_body = first(model.motion_of_body, bodies);
-  prefix.driven_bodies.clear();
-  for (const std::size_t b : model.driven_bodies) {
-    if (b < bodies) prefix.driven_bodies.push_back(b);
-  }
-  return prefix;
-}
-
-State state_prefix(const State& state, std::size_t bodies) {
-  State prefix;
-  prefix.time = state.time;
-  prefix.step = state.step;
-  prefix.position = first(state.position, bodies);
-  prefix.orientation = first(state.orientation, bodies);
-  prefix.velocity = first(state.velocity, bodies);
-  prefix.angular_velocity = first(state.angular_velocity, bodies);
-  return prefix;
 }
 
 State state_with_waiting_bodies(const State& in_play, std::size_t body_count) {

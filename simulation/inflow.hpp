@@ -59,11 +59,8 @@ struct InflowPlan {
   std::size_t due_count(double time) const;
 };
 
-/// The model cut to its first `bodies` bodies (per-body arrays; the shape, material and motion
-/// tables are kept whole): what the step sees while the later inflow grains are not in play.
-Model model_prefix(const Model& model, std::size_t bodies);
-/// The state cut to its first `bodies` bodies (time and step kept).
-State state_prefix(const State& state, std::size_t bodies);
+/// (model_prefix and state_prefix, core/model.hpp: the model and state the step sees while the
+/// later inflow grains are not in play.)
 /// The state of the whole model: `in_play` followed by the bodies not inserted yet, whose
 /// positions, velocities and orientations are NaN (a run file's snapshot: docs/output-format.md).
 State state_with_waiting_bodies(const State& in_play, std::size_t body_count);

@@ -506,12 +506,15 @@ void RunSession::print_progress(const StepReport& report, const SeriesRow& row, 
         rest_time ? format_duration(eta) + " (to rest)" : "? (not decaying yet; at most " + format_duration(eta) + ")";
     if (at_rest) eta_text = "0s (at rest)";
   }
+  // During a pour the rest watcher has not started (step_and_record): no thresholds to show yet.
+  std::string rest_text;
+  if (run_.until_rest)
+    rest_text = inflow_complete() ? "  " + rest_progress(rest_, state_.time) : "  rest: after the inflow";
   *control_.progress << fmt::format(
       "step {:>8}/{}  t = {:.4g} s  contacts {:>6}  iterations {:>4}  residual {:.1e}  Ek {:.3e} J{}{}  elapsed {}  "
       "ETA {}\n",
       state_.step, progress_.end_step, state_.time, report.contacts, report.solver.iterations, report.solver.residual,
-      row.kinetic_energy, inflow_progress(), run_.until_rest ? "  " + rest_progress(rest_, state_.time) : std::string(),
-      format_duration(elapsed), eta_text);
+      row.kinetic_energy, inflow_progress(), rest_text, format_duration(elapsed), eta_text);
   control_.progress->flush();
   last_progress_ = now;
 }

@@ -219,3 +219,18 @@ def test_numerical_failure_is_raised_with_the_step():
         sim.step()
     with pytest.raises(ValueError, match="not finite"):
         sim.velocities = np.full((2, 3), np.nan)  # assignment through the property is checked
+
+
+def test_a_scene_with_an_inflow_is_refused_with_the_reason():
+    # Its grains enter in the run loop of `rubble run` (simulation/inflow.hpp), not between
+    # Simulation.step() calls: refused rather than stepped with its grains waiting in the region.
+    scene = {
+        "time": {"dt": 1e-4, "end_time": 0.01},
+        "materials": [{"name": "glass", "density": 2500.0}],
+        "default_contact_law": {"friction": 0.5},
+        "walls": [{"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}],
+        "inflow": [{"count": 5, "rate": 100.0, "distribution": "monodisperse", "radius": 0.01,
+                    "region_min": [-0.1, -0.1, 0.1], "region_max": [0.1, 0.1, 0.2]}],
+    }
+    with pytest.raises(ValueError, match=r"\[\[inflow\]\] entries, which only `rubble run` inserts"):
+        rubble.Simulation(rubble.scene_from_dict(scene))

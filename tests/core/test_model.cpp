@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <numbers>
+#include <vector>
 
 #include "core/model.hpp"
 
@@ -29,6 +30,41 @@ TEST(Model, WallsHaveInfiniteMass) {
     EXPECT_EQ(m.inverse_inertia[b], Vec3::Zero());
   }
   EXPECT_EQ(m.planes[0].normal, Vec3::UnitZ());  // normalised
+}
+
+// The bodies in play of a run with [[inflow]] (simulation/inflow.hpp): the first n bodies, each
+// with its own per-body data; appending the rest body by body gives back the whole model.
+TEST(Model, PrefixKeepsTheFirstBodiesAndEveryTable) {
+  Model m;
+  m.materials.push_back({"rock", 2500.0});
+  add_sphere(m, 0.1, 0);
+  add_plane_wall(m, Vec3(0, 0, 1), 0);
+  add_sphere(m, 0.2, 0);
+  drive_body(m, 0, PrescribedMotion{{0.0}, {Vec3(1, 0, 0)}, {Vec3::Zero()}});
+  const Model two = model_prefix(m, 2);
+  ASSERT_EQ(two.body_count(), 2u);
+  for (const auto* column : {&two.mass, &two.inverse_mass, &two.bounding_radius, &two.volume}) {
+    EXPECT_EQ(column->size(), 2u);
+  }
+  EXPECT_EQ(two.principal_inertia.size(), 2u);
+  EXPECT_EQ(two.inverse_inertia.size(), 2u);
+  EXPECT_EQ(two.shape_index, std::vector<int>(m.shape_index.begin(), m.shape_index.begin() + 2));
+  EXPECT_EQ(two.motion_of_body, std::vector<int>({0, -1}));
+  EXPECT_EQ(two.driven_bodies, std::vector<std::size_t>({0}));
+  EXPECT_EQ(two.spheres.size(), 2u);  // the shape tables whole: the third body's shape is there
+  EXPECT_EQ(two.mass[1], 0.0);
+  const Model all = model_prefix(m, m.body_count());
+  EXPECT_EQ(all.mass, m.mass);
+  EXPECT_EQ(all.bounding_radius, m.bounding_radius);
+  EXPECT_EQ(all.material, m.material);
+  State state;
+  state.resize(3);
+  state.time = 2.5;
+  state.position[2] = Vec3(0, 0, 7);
+  const State first = state_prefix(state, 2);
+  EXPECT_EQ(first.body_count(), 2u);
+  EXPECT_EQ(first.time, 2.5);
+  EXPECT_EQ(state_prefix(state, 3).position[2], Vec3(0, 0, 7));
 }
 
 TEST(ContactLawTable, IsSymmetric) {

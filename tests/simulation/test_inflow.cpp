@@ -12,7 +12,12 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
 
+#include "postprocessing/metrics.hpp"
+#include "postprocessing/post.hpp"
 #include "postprocessing/run_reader.hpp"
 #include "simulation/run.hpp"
 #include "simulation/scene_file.hpp"
@@ -169,6 +174,36 @@ TEST(Inflow, RunFileHasTheDocumentedCounts) {
                              "' " +
                              summary.run_file.string();
   EXPECT_EQ(std::system(counts.c_str()), 0) << counts;
+}
+
+// rubble post on a pour: each snapshot's metrics over the grains in play (not the NaN rows of the
+// grains still to come), and the ParaView series of those grains.
+TEST(Inflow, PostProcessesThePourSnapshotBySnapshot) {
+  const Scene scene = pour_scene("post");
+  const RunSummary summary = run_scene(scene, control_for());
+  PostOptions options;
+  options.output_directory = fs::path(scene.run.output.directory) / "post";
+  options.plots = false;
+  options.write_vtk = true;
+  ASSERT_NO_THROW(post_process_run(summary.run_file, options));
+  const RunReader reader = RunReader::open(summary.run_file);
+  std::ifstream csv(options.output_directory / "metrics.csv");
+  std::vector<std::vector<std::string>> rows;
+  for (std::string line; std::getline(csv, line);) {
+    std::vector<std::string> cells;
+    std::stringstream stream(line);
+    for (std::string cell; std::getline(stream, cell, ',');) cells.push_back(cell);
+    rows.push_back(cells);
+  }
+  const std::vector<std::string> names = metrics_column_names();
+  ASSERT_EQ(rows.size(), reader.snapshot_count() + 1);  // the header, then one row per snapshot
+  ASSERT_EQ(rows[0], names);
+  const auto grains = static_cast<std::size_t>(std::find(names.begin(), names.end(), "grains") - names.begin());
+  for (std::size_t k = 0; k < reader.snapshot_count(); ++k) {
+    EXPECT_EQ(std::stod(rows[k + 1][grains]), static_cast<double>(reader.read_snapshot(k).bodies_in_play - walls))
+        << "snapshot " << k;
+  }
+  EXPECT_TRUE(fs::exists(options.output_directory / "vtk" / "spheres.pvd"));
 }
 
 /// The overlap of ball (x, r) with body b of the state (its bounding ball, or a plane wall's
