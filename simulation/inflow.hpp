@@ -59,8 +59,9 @@ struct InflowPlan {
   std::size_t due_count(double time) const;
 };
 
-/// (model_prefix and state_prefix, core/model.hpp: the model and state the step sees while the
-/// later inflow grains are not in play.)
+// The model and state the step sees while the later inflow grains are not in play:
+// model_prefix and state_prefix (core/model.hpp).
+
 /// The state of the whole model: `in_play` followed by the bodies not inserted yet, whose
 /// positions, velocities and orientations are NaN (a run file's snapshot: docs/output-format.md).
 State state_with_waiting_bodies(const State& in_play, std::size_t body_count);
