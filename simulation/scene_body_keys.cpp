@@ -300,7 +300,8 @@ const std::vector<SectionKey<ByHand>>& inflow_keys() {
     return joined<ByHand>(
         grain_keys,
         {{.name = "count", .required = true, .type = "integer", .doc = "grains inserted in all"},
-         {.name = "rate", .required = true, .type = "number", .doc = "grains per second"},
+         {.name = "rate", .type = "number", .doc = "grains per second (or mass_rate)"},
+         {.name = "mass_rate", .type = "number", .doc = "kg/s, instead of rate"},
          {.name = "start_time", .type = "number", .doc = "s, when the first grain is due"},
          {.name = "region_min", .required = true, .type = "vector", .doc = "m, where the grains' centres appear"},
          {.name = "region_max", .required = true, .type = "vector", .doc = "m, > region_min on every axis"},

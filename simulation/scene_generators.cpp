@@ -3,6 +3,7 @@
 // keys a generator of each type and shape takes are the tables of scene_body_keys.cpp; they are
 // read here, by hand (they configure a packing, and check each other: sizes, regions, counts).
 #include <algorithm>
+#include <numbers>
 #include <random>
 #include <tuple>
 
@@ -247,6 +248,23 @@ std::vector<GrainSpec> inflow_grains(const TableReader& entry, std::size_t index
   return generator_grains(entry, index, balls, recipe, seed);
 }
 
+/// Grains per second: `rate`, or `mass_rate` (kg/s) over the mean mass of the inflow's own grains
+/// (density x volume), so that the grains' mass enters at mass_rate on average.
+double inflow_rate(const SceneDraft& draft, const TableReader& entry, const std::vector<GrainSpec>& grains) {
+  if (entry.has("rate") == entry.has("mass_rate")) {
+    entry.fail_table("expected exactly one of rate (grains per second) and mass_rate (kg/s)");
+  }
+  if (entry.has("rate")) return entry.number("rate", positive());
+  const double mass_rate = entry.number("mass_rate", positive());
+  double mass = 0.0;
+  for (const GrainSpec& grain : grains) {
+    const double density = draft.scene.model.materials[static_cast<std::size_t>(grain.material)].density;
+    mass += density * (grain.polyhedron ? grain.polyhedron->volume
+                                        : 4.0 / 3.0 * std::numbers::pi * grain.radius * grain.radius * grain.radius);
+  }
+  return mass_rate * static_cast<double>(grains.size()) / mass;
+}
+
 }  // namespace
 
 void parse_inflows(SceneDraft& draft) {
@@ -263,7 +281,6 @@ void parse_inflows(SceneDraft& draft) {
     Inflow inflow;
     inflow.count = static_cast<std::uint64_t>(entry.integer("count", 1, static_cast<std::int64_t>(max_packed_grains)));
     check_memory(draft, entry, "count", inflow.count, shape != "sphere");
-    inflow.rate = entry.number("rate", positive());
     inflow.start_time = entry.number_or("start_time", 0.0, non_negative());
     std::tie(inflow.region_min, inflow.region_max) = parse_region(entry);
     inflow.attempts = static_cast<int>(entry.integer_or("attempts", 100, 1, 1000000));
@@ -278,6 +295,7 @@ void parse_inflows(SceneDraft& draft) {
     if (shape != "sphere") recipe.polyhedron_options = parse_random_polyhedron_options(entry);
     if (shape == "mix") recipe.polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
     made[index] = inflow_grains(entry, index, inflow.count, sizes, recipe, inflow.seed);
+    inflow.rate = inflow_rate(draft, entry, made[index]);
     for (std::uint64_t k = 0; k < inflow.count; ++k) {
       draft.scene.inflow.grains.push_back(
           {static_cast<int>(index), k, inflow.start_time + static_cast<double>(k) / inflow.rate});

@@ -128,6 +128,24 @@ TEST(Inflow, GrainsAreTheLastBodiesDueAtTheRate) {
   }
 }
 
+// mass_rate instead of rate: grains per second = mass_rate / the mean mass of the inflow's grains,
+// here taken from the model (its own masses, from density and volume).
+TEST(Inflow, MassRateSetsTheGrainRateFromTheMeanGrainMass) {
+  std::string text = pour_text;
+  const std::string rate_line = "rate = 2000.0";
+  text.replace(text.find(rate_line), rate_line.size(), "mass_rate = 20.0");
+  const Scene scene = parse_scene(text, "pour.toml");
+  double mass = 0.0;
+  for (std::size_t b = walls; b < scene.model.body_count(); ++b) mass += scene.model.mass[b];
+  const double grain_rate = 20.0 / (mass / static_cast<double>(count));
+  ASSERT_GT(grain_rate, 500.0);  // about 20 g a grain: about 10^3 grains/s
+  for (const double t : {0.0101, 0.023, 0.047, 0.09}) {
+    const auto expected =
+        std::min<std::size_t>(count, static_cast<std::size_t>(std::floor((t - start) * grain_rate)) + 1);
+    EXPECT_EQ(scene.inflow.due_count(t), expected) << "t = " << t;
+  }
+}
+
 TEST(Inflow, PourInsertsRateTimesTimeGrains) {
   const Scene scene = pour_scene("rate");
   const RunSummary summary = run_scene(scene, control_for());
