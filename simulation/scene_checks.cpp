@@ -36,9 +36,11 @@ void check_rotation_resistance_shapes(const SceneDraft& draft) {
   const Model& model = draft.scene.model;
   const std::size_t n = model.materials.size();
   std::vector<bool> polyhedra(n, false), touches(n, false);
-  for (const GrainSpec& g : draft.grains) {
-    touches[static_cast<std::size_t>(g.material)] = true;
-    if (g.polyhedron) polyhedra[static_cast<std::size_t>(g.material)] = true;
+  for (const auto* grains : {&draft.grains, &draft.inflow_grains}) {  // the [[inflow]] grains touch too
+    for (const GrainSpec& g : *grains) {
+      touches[static_cast<std::size_t>(g.material)] = true;
+      if (g.polyhedron) polyhedra[static_cast<std::size_t>(g.material)] = true;
+    }
   }
   for (const WallSpec& w : draft.walls) touches[static_cast<std::size_t>(w.material)] = true;
   // The polyhedron material of pair (a, b) whose law resists rotation, or -1.
