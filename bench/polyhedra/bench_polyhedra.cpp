@@ -2,9 +2,14 @@
 //   bench_polyhedra narrow [pairs]          narrow-phase throughput, cold and warm-started
 //   bench_polyhedra deposit [grains] [steps] a box deposit of random polyhedra: steps/s, contacts,
 //                                            NLGS sweeps, time per stage
+// Both print a hash of their results (every contact's id, point, frame and gap and the common
+// normals; the deposit's final state), so two builds can be checked to give the same bits.
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <ctime>
 #include <random>
 #include <string>
 
@@ -12,6 +17,7 @@
 #include "contact_detection/narrow_phase_polyhedra.hpp"
 #include "core/polyhedron.hpp"
 #include "preprocessing/random_polyhedron.hpp"
+#include "simulation/checkpoint.hpp"
 #include "simulation/step.hpp"
 
 namespace {
@@ -20,6 +26,33 @@ using namespace rubble;
 using Clock = std::chrono::steady_clock;
 
 double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// CPU seconds of the calling thread: the narrow-phase rates are per CPU second, so that other
+/// processes sharing the core do not count against the code measured.
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+/// FNV-1a over the bytes of a value: a result hash to compare two builds bit for bit.
+template <class T>
+void hash_bytes(std::uint64_t& hash, const T& value) {
+  unsigned char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  for (unsigned char byte : bytes) hash = (hash ^ byte) * 1099511628211ull;
+}
+
+/// Hash of what the narrow phase outputs for a contact: id, point, frame, gap.
+void hash_contact(std::uint64_t& hash, const Contact& c) {
+  hash_bytes(hash, c.id.body_a);
+  hash_bytes(hash, c.id.body_b);
+  hash_bytes(hash, c.id.feature_a);
+  hash_bytes(hash, c.id.feature_b);
+  for (int k = 0; k < 3; ++k) hash_bytes(hash, c.point[k]);
+  for (int k = 0; k < 9; ++k) hash_bytes(hash, c.frame.data()[k]);
+  hash_bytes(hash, c.gap);
+}
 
 Quat random_rotation(std::mt19937_64& rng) {
   std::normal_distribution<double> normal;
@@ -64,8 +97,10 @@ int narrow(int pairs) {
   std::vector<Vec3> normals(static_cast<std::size_t>(pairs));
   std::size_t contacts = 0;
   ContactList list;
+  std::uint64_t hash_cold = 14695981039346656037ull, hash_warm = hash_cold, hash_plane = hash_cold;
   // Cold.
   auto t0 = Clock::now();
+  double cpu0 = thread_cpu_seconds();
   int rounds = 0;
   do {
     for (int k = 0; k < pairs; ++k) {
@@ -74,10 +109,14 @@ int narrow(int pairs) {
                                     static_cast<std::uint32_t>(2 * k + 1), alert, nullptr, list,
                                     normals[static_cast<std::size_t>(k)]);
       contacts += list.size();
+      if (rounds == 0) {
+        for (const Contact& c : list) hash_contact(hash_cold, c);
+        for (int i = 0; i < 3; ++i) hash_bytes(hash_cold, normals[static_cast<std::size_t>(k)][i]);
+      }
     }
     ++rounds;
   } while (seconds(t0) < 2.0);
-  const double cold = rounds * pairs / seconds(t0);
+  const double cold = rounds * pairs / (thread_cpu_seconds() - cpu0);
   const double contacts_per_pair = static_cast<double>(contacts) / (rounds * pairs);
   // Warm: a small motion (1e-3 d, 1e-3 rad), then the remembered normal.
   for (int k = 0; k < pairs; ++k) {
@@ -87,6 +126,7 @@ int narrow(int pairs) {
         (quaternion_exp(1e-3 * Vec3(normal(rng), normal(rng), normal(rng))) * state.orientation[b]).normalized();
   }
   t0 = Clock::now();
+  cpu0 = thread_cpu_seconds();
   rounds = 0;
   Vec3 out;
   do {
@@ -95,12 +135,17 @@ int narrow(int pairs) {
       collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
                                     static_cast<std::uint32_t>(2 * k + 1), alert, &normals[static_cast<std::size_t>(k)],
                                     list, out);
+      if (rounds == 0) {
+        for (const Contact& c : list) hash_contact(hash_warm, c);
+        for (int i = 0; i < 3; ++i) hash_bytes(hash_warm, out[i]);
+      }
     }
     ++rounds;
   } while (seconds(t0) < 2.0);
-  const double warm = rounds * pairs / seconds(t0);
+  const double warm = rounds * pairs / (thread_cpu_seconds() - cpu0);
   // Common plane alone (no contact points), cold and warm.
   t0 = Clock::now();
+  cpu0 = thread_cpu_seconds();
   rounds = 0;
   double sink = 0.0;
   do {
@@ -108,28 +153,47 @@ int narrow(int pairs) {
       const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
       const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
       const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      sink += find_common_plane(pa, pb, nullptr, alert).gap;
+      const CommonPlane plane = find_common_plane(pa, pb, nullptr, alert);
+      sink += plane.gap;
+      if (rounds == 0) {
+        for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
+        hash_bytes(hash_plane, plane.gap);
+        hash_bytes(hash_plane, plane.complete);
+        hash_bytes(hash_plane, plane.source);
+      }
     }
     ++rounds;
   } while (seconds(t0) < 2.0);
-  const double plane_cold = rounds * pairs / seconds(t0);
+  const double plane_cold = rounds * pairs / (thread_cpu_seconds() - cpu0);
   t0 = Clock::now();
+  cpu0 = thread_cpu_seconds();
   rounds = 0;
   do {
     for (int k = 0; k < pairs; ++k) {
       const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
       const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
       const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      sink += find_common_plane(pa, pb, &normals[static_cast<std::size_t>(k)], alert).gap;
+      const CommonPlane plane = find_common_plane(pa, pb, &normals[static_cast<std::size_t>(k)], alert);
+      sink += plane.gap;
+      if (rounds == 0) {
+        for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
+        hash_bytes(hash_plane, plane.gap);
+        hash_bytes(hash_plane, plane.complete);
+        hash_bytes(hash_plane, plane.source);
+      }
     }
     ++rounds;
   } while (seconds(t0) < 2.0);
-  const double plane_warm = rounds * pairs / seconds(t0);
-  std::printf("narrow phase, %d pairs near contact (gap in [-0.02, 0.05] d, alert 0.05 d), one thread\n", pairs);
+  const double plane_warm = rounds * pairs / (thread_cpu_seconds() - cpu0);
+  std::printf("narrow phase, %d pairs near contact (gap in [-0.02, 0.05] d, alert 0.05 d), one thread,\n", pairs);
+  std::printf("pairs per CPU second of the thread (CLOCK_THREAD_CPUTIME_ID), each loop run for 2 s of wall time\n");
   std::printf("  collide_polyhedron_polyhedron  cold %.0f pairs/s   warm %.0f pairs/s   (%.2f contact points/pair)\n",
               cold, warm, contacts_per_pair);
   std::printf("  find_common_plane only         cold %.0f pairs/s   warm %.0f pairs/s   (checksum %.3g)\n", plane_cold,
               plane_warm, sink);
+  std::printf("  result hashes (first round): contacts+normals cold %016llx warm %016llx, planes %016llx\n",
+              static_cast<unsigned long long>(hash_cold), static_cast<unsigned long long>(hash_warm),
+              static_cast<unsigned long long>(hash_plane));
   return 0;
 }
 
@@ -201,7 +265,7 @@ int deposit(int grains, int steps) {
   for (std::size_t s = 0; s < stage.size(); ++s) {
     std::printf(" %s %.2f", std::string(stage_name(static_cast<Stage>(s))).c_str(), 1e3 * stage[s] / steps);
   }
-  std::printf("\n");
+  std::printf("\n  final state hash %016llx\n", static_cast<unsigned long long>(state_hash(state)));
   return 0;
 }
 
