@@ -18,7 +18,9 @@
 //   3. If the best candidate separates the bodies (f > 0), the distance is refined by GJK
 //      (Gilbert, Johnson, Keerthi 1988) started from that normal, which finds the closest-points
 //      direction exactly (vertex-vertex and vertex-edge cases are not SAT candidates).
+#include <array>
 #include <cstddef>
+#include <vector>
 
 #include "core/math.hpp"
 #include "core/shapes.hpp"
@@ -51,6 +53,37 @@ struct CommonPlane {
   CommonPlaneSource source = CommonPlaneSource::warm_start;  ///< which candidate won
 };
 
+/// Two polyhedra seen from A's body frame, where the common-plane search and the contact points
+/// both work: B's pose relative to A and, once `move_b_into_frame_of_a` has run, B's vertices and
+/// face normals moved there. Built once per pair and read by both stages, so B is moved once
+/// (it was moved twice, once by each stage). The buffers at the end are the separating-axis
+/// search's working space: a caller that reuses one PolyhedronPair from pair to pair (one per
+/// thread) allocates nothing once they have grown.
+struct PolyhedronPair {
+  const ConvexPolyhedron* A = nullptr;      ///< body-frame shape of A
+  const ConvexPolyhedron* B = nullptr;      ///< body-frame shape of B
+  Mat3 rotation_a = Mat3::Identity();       ///< A's body frame -> world frame
+  Vec3 position_a = Vec3::Zero();           ///< m, world position of A's origin (centroid)
+  Mat3 rotation = Mat3::Identity();         ///< B's body frame -> A's body frame
+  Vec3 translation = Vec3::Zero();          ///< m, B's origin in A's frame
+  bool b_moved = false;                     ///< true once vb and nb hold this pair's B
+  std::vector<Vec3> vb;                     ///< m, B's vertices in A's frame
+  std::vector<Vec3> nb;                     ///< B's face normals in A's frame
+  std::vector<Vec3> va_in_b;                ///< buffer: m, A's vertices in B's frame (edge pruning)
+  std::vector<unsigned char> outcodes_a;    ///< buffer: per vertex of A, sides of B's inflated box it lies beyond
+  std::vector<unsigned char> outcodes_b;    ///< buffer: per vertex of B, sides of A's inflated box it lies beyond
+  std::vector<int> edges_a;                 ///< buffer: edges of A within reach of B
+  std::vector<int> edges_b;                 ///< buffer: edges of B within reach of A
+  std::vector<std::array<Vec3, 3>> arcs_b;  ///< buffer: Gauss-map arcs of those edges of B
+};
+
+/// Sets `pair` to A and B (B's pose in A's frame; B's vertices are moved later, only when the
+/// search needs them). Keeps the pair's buffers.
+void place_pair(const PolyhedronInWorld& a, const PolyhedronInWorld& b, PolyhedronPair& pair);
+
+/// Moves B's vertices and face normals into A's frame (pair.vb, pair.nb), once per pair.
+void move_b_into_frame_of_a(PolyhedronPair& pair);
+
 /// The separation f(n) = min_B n.y - max_A n.x along the world unit vector n (from A to B).
 double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3& normal);
 
@@ -62,6 +95,11 @@ double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, 
 /// optimum it is kept, so a persistent contact does not flip between equivalent planes.
 CommonPlane find_common_plane(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3* initial_normal,
                               double cutoff);
+
+/// The same search on a pair set by `place_pair`, with the pair's buffers: B's vertices are moved
+/// into A's frame (pair.vb) unless the warm start ends the search, and the contact points of the
+/// pair can then read them without moving B again. Same result to the bit as the overload above.
+CommonPlane find_common_plane(PolyhedronPair& pair, const Vec3* initial_normal, double cutoff);
 
 /// Closest point of a polyhedron to `point` (both in the body frame), by GJK. Returns false when
 /// the point is inside the polyhedron or on its surface within round-off (`closest` untouched).

@@ -7,12 +7,20 @@
 namespace rubble::contact_polygon {
 
 Polygon hull_2d(Polygon points, double tolerance) {
+  Polygon hull;
+  HullBuffers buffers;
+  hull_2d(points, tolerance, hull, buffers);
+  return hull;
+}
+
+void hull_2d(Polygon& points, double tolerance, Polygon& hull, HullBuffers& buffers) {
   std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
     return a.p.x() < b.p.x() ||
            (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
   });
   // Merge coincident points (keep the lowest vertex id for determinism).
-  Polygon unique;
+  Polygon& unique = buffers.unique;
+  unique.clear();
   for (const CapVertex& c : points) {
     bool found = false;
     for (CapVertex& u : unique) {
@@ -24,8 +32,11 @@ Polygon hull_2d(Polygon points, double tolerance) {
     }
     if (!found) unique.push_back(c);
   }
-  if (unique.size() <= 2) return unique;
-  Polygon hull(2 * unique.size());
+  if (unique.size() <= 2) {
+    hull.assign(unique.begin(), unique.end());
+    return;
+  }
+  hull.resize(2 * unique.size());
   std::size_t k = 0;
   auto turn = [&](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
     const Vec2 oa = a.p - o.p;
@@ -43,7 +54,6 @@ Polygon hull_2d(Polygon points, double tolerance) {
   }
   hull.resize(k - 1);
   if (hull.size() < 2) hull.assign(1, unique.front());
-  return hull;
 }
 
 Vec2 closest_on_boundary(const Polygon& polygon, const Vec2& q, std::size_t vertex_count, std::uint32_t& feature) {
@@ -75,8 +85,11 @@ Vec2 clamp_into(const Polygon& polygon, const Vec2& q) {
   return closest_on_boundary(polygon, q, 0, feature);
 }
 
-double polygon_area(Polygon points) {
-  const Polygon hull = hull_2d(std::move(points), 0.0);
+namespace {
+
+/// The area of the convex hull of `points` (sorted in place), with caller-owned buffers.
+double polygon_area(Polygon& points, Polygon& hull, HullBuffers& buffers) {
+  hull_2d(points, 0.0, hull, buffers);
   double area = 0.0;
   for (std::size_t i = 0; i < hull.size() && hull.size() >= 3; ++i) {
     area += cross2(hull[i].p, hull[(i + 1) % hull.size()].p);
@@ -84,8 +97,27 @@ double polygon_area(Polygon points) {
   return 0.5 * std::abs(area);
 }
 
+}  // namespace
+
+double polygon_area(Polygon points) {
+  Polygon hull;
+  HullBuffers buffers;
+  return polygon_area(points, hull, buffers);
+}
+
 std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double area_tolerance) {
-  if (all.size() <= 4) return all;
+  std::vector<Candidate> kept;
+  ReductionBuffers buffers;
+  reduce_to_four(all, area_tolerance, kept, buffers);
+  return kept;
+}
+
+void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept,
+                    ReductionBuffers& buffers) {
+  if (all.size() <= 4) {
+    kept.assign(all.begin(), all.end());
+    return;
+  }
   std::size_t i1 = 0;
   for (std::size_t i = 1; i < all.size(); ++i) {
     if (all[i].gap < all[i1].gap) i1 = i;
@@ -108,27 +140,34 @@ std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double 
       i3 = i;
     }
   }
-  std::vector<Candidate> kept{all[i1], all[i2]};
-  if (area3 <= area_tolerance) return kept;  // all collinear: a segment
+  kept.assign({all[i1], all[i2]});
+  if (area3 <= area_tolerance) return;  // all collinear: a segment
   kept.push_back(all[i3]);
   const double triangle = 0.5 * area3;
   std::size_t i4 = all.size();
   double best_gain = area_tolerance;
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (i == i1 || i == i2 || i == i3) continue;
-    const double gain = polygon_area({{all[i1].p, 0}, {all[i2].p, 1}, {all[i3].p, 2}, {all[i].p, 3}}) - triangle;
+    buffers.quad.assign({{all[i1].p, 0}, {all[i2].p, 1}, {all[i3].p, 2}, {all[i].p, 3}});
+    const double gain = polygon_area(buffers.quad, buffers.quad_hull, buffers.hull) - triangle;
     if (gain > best_gain) {
       best_gain = gain;
       i4 = i;
     }
   }
   if (i4 < all.size()) kept.push_back(all[i4]);
-  return kept;
 }
 
 std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate> kept,
                                             double tolerance, std::size_t max_points) {
-  if (kept.size() == all.size() || kept.size() >= max_points) return kept;
+  ReductionBuffers buffers;
+  add_off_plane_points(all, kept, tolerance, max_points, buffers);
+  return kept;
+}
+
+void add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate>& kept, double tolerance,
+                          std::size_t max_points, ReductionBuffers& buffers) {
+  if (kept.size() == all.size() || kept.size() >= max_points) return;
   // Affine fit gap ~ c0 + c1 x + c2 y by least squares over the kept points (a line or a
   // constant when they are collinear or alone).
   const Vec2 origin = kept[0].p;
@@ -141,10 +180,12 @@ std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, s
   }
   const Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix3d> solver(normal_matrix);
   const Vec3 fit = solver.solve(right);
-  std::vector<std::pair<double, std::size_t>> deficits;
+  auto& deficits = buffers.deficits;
+  deficits.clear();
+  const std::size_t kept_count = kept.size();
   for (std::size_t i = 0; i < all.size(); ++i) {
     bool is_kept = false;
-    for (const Candidate& c : kept) is_kept = is_kept || (c.p - all[i].p).squaredNorm() == 0.0;
+    for (std::size_t k = 0; k < kept_count; ++k) is_kept = is_kept || (kept[k].p - all[i].p).squaredNorm() == 0.0;
     if (is_kept) continue;
     const double predicted = fit.dot(Vec3(1.0, all[i].p.x() - origin.x(), all[i].p.y() - origin.y()));
     const double deficit = predicted - all[i].gap;
@@ -157,7 +198,6 @@ std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, s
     if (kept.size() >= max_points) break;
     kept.push_back(all[i]);
   }
-  return kept;
 }
 
 }  // namespace rubble::contact_polygon

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "core/math.hpp"
@@ -49,10 +50,18 @@ struct CapVertex {
 /// A convex polygon (counter-clockwise), a segment (2 vertices) or a point (1).
 using Polygon = std::vector<CapVertex>;
 
+/// Working space of hull_2d, reused from call to call so that a hull allocates nothing.
+struct HullBuffers {
+  Polygon unique;  ///< the sorted points with coincident ones merged
+};
+
 /// Convex hull (counter-clockwise, Andrew's monotone chain) of the cap's projections; points
 /// closer than `tolerance` to a hull edge's line are dropped, so a flat cap collapses to a
 /// segment (2 points) or a point (1).
 Polygon hull_2d(Polygon points, double tolerance);
+
+/// The same hull written into `hull`, with caller-owned buffers (`points` is sorted in place).
+void hull_2d(Polygon& points, double tolerance, Polygon& hull, HullBuffers& buffers);
 
 /// Is q inside the convex polygon (or on the segment / at the point) within `tolerance`?
 inline bool inside(const Polygon& polygon, const Vec2& q, double tolerance) {
@@ -109,10 +118,22 @@ struct Candidate {
 /// The area of the convex hull of `points`, m^2.
 double polygon_area(Polygon points);
 
+/// Working space of reduce_to_four and add_off_plane_points, reused from pair to pair.
+struct ReductionBuffers {
+  Polygon quad;                                          ///< the four points whose area is measured
+  Polygon quad_hull;                                     ///< their hull
+  HullBuffers hull;                                      ///< buffers of hull_2d
+  std::vector<std::pair<double, std::size_t>> deficits;  ///< add_off_plane_points' candidates
+};
+
 /// Keeps at most 4 candidates carrying the contact area: the deepest point first, then the
 /// point farthest from it, then the one spanning the largest triangle with them, then the one
 /// adding the most area (dropped when it adds nothing). Deterministic for a given input order.
 std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double area_tolerance);
+
+/// The same reduction written into `kept`, with caller-owned buffers.
+void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept,
+                    ReductionBuffers& buffers);
 
 /// The points `reduce_to_four` dropped that the kept ones do not stand for. A rigid relative
 /// motion changes the gap affinely over the plane, so constraints at the kept points hold every
@@ -122,5 +143,9 @@ std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double 
 /// deepest deficit first, up to `max_points` in all.
 std::vector<Candidate> add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate> kept,
                                             double tolerance, std::size_t max_points);
+
+/// The same, appending to `kept` in place, with caller-owned buffers.
+void add_off_plane_points(const std::vector<Candidate>& all, std::vector<Candidate>& kept, double tolerance,
+                          std::size_t max_points, ReductionBuffers& buffers);
 
 }  // namespace rubble::contact_polygon

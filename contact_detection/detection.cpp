@@ -211,6 +211,13 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
 
 void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
                   const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal) {
+  PolyhedronScratch scratch;
+  collide_pair(model, state, pair, alert_distance, memory, contacts, common_normal, scratch);
+}
+
+void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
+                  const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal,
+                  PolyhedronScratch& scratch) {
   std::uint32_t a = pair.body_a;
   std::uint32_t b = pair.body_b;
   // Walls go first so the normal points from the wall into the grain.
@@ -229,13 +236,13 @@ void collide_pair(const Model& model, const State& state, const BodyPair& pair, 
   } else if (!model.is_grain(a) && !model.is_grain(b)) {
     return;  // two walls never interact
   } else if (kind_a == ShapeKind::polyhedron && kind_b == ShapeKind::polyhedron) {
-    collide_polyhedron_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
+    collide_polyhedron_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal, scratch);
   } else if (kind_a == ShapeKind::sphere || kind_b == ShapeKind::sphere) {
     collide_sphere_polyhedron(model, state, a, b, alert_distance, contacts);
   } else if (kind_a == ShapeKind::plane) {
     collide_plane_polyhedron(model, state, a, b, alert_distance, contacts);
   } else if (kind_a == ShapeKind::box) {
-    collide_box_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal);
+    collide_box_polyhedron(model, state, a, b, alert_distance, previous, contacts, common_normal, scratch);
   } else {
     throw std::runtime_error("narrow phase: no contact routine for this pair of shapes");
   }
@@ -307,14 +314,20 @@ ContactList collide_listed_pairs(const Model& model, const State& state, double 
     const std::size_t count = std::min(wave, pairs.size() - first);
     const auto count_signed = static_cast<std::ptrdiff_t>(count);
     std::fill(normals.begin(), normals.end(), Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
-#pragma omp parallel for schedule(dynamic, 32) if (count_signed >= min_parallel_items / 4)
-    for (std::ptrdiff_t p = 0; p < count_signed; ++p) {
-      const auto k = static_cast<std::size_t>(p);
-      ContactList& list = per_pair[k];
-      collide_pair(model, state, pairs[order[first + k]], alert, memory, list, normals[k]);
-      // (stable_sort allocates a buffer even for a sorted list of two)
-      if (!std::is_sorted(list.begin(), list.end(), contact_id_less)) {
-        std::stable_sort(list.begin(), list.end(), contact_id_less);
+#pragma omp parallel if (count_signed >= min_parallel_items / 4)
+    {
+      // Each thread's own working space for the polyhedral narrow phase: its buffers grow on the
+      // first pairs and are reused by the rest of the wave (no allocation per pair).
+      PolyhedronScratch scratch;
+#pragma omp for schedule(dynamic, 32)
+      for (std::ptrdiff_t p = 0; p < count_signed; ++p) {
+        const auto k = static_cast<std::size_t>(p);
+        ContactList& list = per_pair[k];
+        collide_pair(model, state, pairs[order[first + k]], alert, memory, list, normals[k], scratch);
+        // (stable_sort allocates a buffer even for a sorted list of two)
+        if (!std::is_sorted(list.begin(), list.end(), contact_id_less)) {
+          std::stable_sort(list.begin(), list.end(), contact_id_less);
+        }
       }
     }
     std::size_t found = 0;

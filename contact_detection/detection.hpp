@@ -11,6 +11,8 @@
 
 namespace rubble {
 
+struct PolyhedronScratch;  // narrow_phase_polyhedra.hpp
+
 /// Settings of contact detection.
 struct DetectionOptions {
   /// m: pairs whose gap is below this distance produce contact points, so that contacts about
@@ -74,6 +76,11 @@ std::vector<BodyPair> find_candidate_pairs(const Model& model, const State& stat
 /// Narrow phase for one pair: appends the pair's contact points with gap < alert_distance.
 /// `memory` is last step's detection memory (read) and `common_normal` receives this step's
 /// common-plane normal for polyhedron pairs (unchanged otherwise).
+/// `scratch` is the polyhedral narrow phase's working space (one per thread, reused from pair to pair).
+void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
+                  const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal,
+                  PolyhedronScratch& scratch);
+/// The same with a scratch of its own (allocates; for tests and one-off calls).
 void collide_pair(const Model& model, const State& state, const BodyPair& pair, double alert_distance,
                   const DetectionMemory& memory, ContactList& contacts, Vec3& common_normal);
 

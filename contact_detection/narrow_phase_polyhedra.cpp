@@ -21,94 +21,106 @@ PolyhedronInWorld placed(const Model& model, const State& state, std::uint32_t b
           state.orientation[body].toRotationMatrix()};
 }
 
-/// Appends a contact point.
-void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std::uint32_t feature_b,
-                  const Vec3& normal, const Vec3& point, double gap, ContactList& contacts) {
+/// Appends a contact point with the frame (n, t, s) of the common plane.
+void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std::uint32_t feature_b, const Mat3& frame,
+                  const Vec3& point, double gap, ContactList& contacts) {
   Contact c;
   c.id = ContactId{a, b, feature_a, feature_b};
   c.point = point;
-  c.frame = frame_from_normal(normal);
+  c.frame = frame;
   c.gap = gap;
   contacts.push_back(c);
 }
 
-/// Two polyhedra seen from A's frame, with the common plane's frame (n from A to B, tangents t
-/// and s): what each stage of contacts_on_common_plane reads.
-struct PairOnPlane {
-  const ConvexPolyhedron* A = nullptr;
-  const ConvexPolyhedron* B = nullptr;
-  Mat3 rotation;                  ///< B's frame -> A's frame
-  Vec3 translation;               ///< m, B's origin in A's frame
-  double size = 0.0;              ///< m, the smaller bounding radius
-  Vec3 n, t, s;                   ///< the plane's normal and tangents in A's frame
-  std::vector<Vec3> vb;           ///< m, B's vertices in A's frame
-  double top_a = 0.0;             ///< m, A's extreme height along n
-  double bottom_b = 0.0;          ///< m, B's extreme height along -n
-  double linear_tolerance = 0.0;  ///< m, 1e-7 of the size: round-off of the caps' hulls
-  /// m, features closer than this in the plane count as coincident, and a vertex this close outside
-  /// the other polygon still counts as inside: stacked, aligned faces then keep the same contact
-  /// ids (hence warm starts) while they creep by less than 1e-3 of the grain size.
-  double feature_tolerance = 0.0;
-  /// B's faces turned against n, as (m.t, m.s, m.n, offset) in A's frame.
-  std::vector<std::array<double, 4>> faces_down;
-  int face_a = 0;  ///< A's face most turned towards n: the "face" side of vertex-face points
-  int face_b = 0;  ///< B's face most turned against n
-};
+/// Appends a contact point with normal `normal`.
+void push_contact(std::uint32_t a, std::uint32_t b, std::uint32_t feature_a, std::uint32_t feature_b,
+                  const Vec3& normal, const Vec3& point, double gap, ContactList& contacts) {
+  push_contact(a, b, feature_a, feature_b, frame_from_normal(normal), point, gap, contacts);
+}
 
-PairOnPlane place_on_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, const Vec3& normal_world) {
-  PairOnPlane q;
-  q.A = pa.shape;
-  q.B = pb.shape;
-  const ConvexPolyhedron& A = *pa.shape;
-  const ConvexPolyhedron& B = *pb.shape;
-  q.rotation = pa.rotation.transpose() * pb.rotation;
-  q.translation = pa.rotation.transpose() * (pb.position - pa.position);
+/// The faces of A turned towards n (its upper surface) and of B turned against it (its lower
+/// surface), and the face of each most turned so. Each face's n-component is computed once here
+/// and read by the face selection and by every surface height.
+void surfaces_on_plane(PairOnPlane& q) {
+  const PolyhedronPair& pair = *q.pair;
+  const ConvexPolyhedron& A = *pair.A;
+  const ConvexPolyhedron& B = *pair.B;
+  q.faces_up.clear();
+  double best_up = -2.0;
+  for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
+    const Vec3& m = A.face_normals[f];
+    const double up = m.dot(q.n);
+    if (up > best_up) {
+      best_up = up;
+      q.face_a = static_cast<int>(f);
+    }
+    if (up <= 1e-6) continue;
+    q.faces_up.push_back({m.dot(q.t), m.dot(q.s), up, A.face_offsets[f]});
+  }
+  q.faces_down.clear();
+  double best_down = 2.0;
+  for (std::size_t f = 0; f < pair.nb.size(); ++f) {
+    const Vec3& m = pair.nb[f];
+    const double down = m.dot(q.n);
+    if (down < best_down) {
+      best_down = down;
+      q.face_b = static_cast<int>(f);
+    }
+    if (down >= -1e-6) continue;
+    q.faces_down.push_back({m.dot(q.t), m.dot(q.s), down, B.face_offsets[f] + m.dot(pair.translation)});
+  }
+}
+
+/// Sets the plane's frame in A's frame and what every stage reads: each vertex's height along n
+/// (computed once, read by the caps, the ridges and the vertex points), the extremes, the surfaces.
+void place_on_plane(const PolyhedronPair& pair, const Vec3& normal_world, PairOnPlane& q) {
+  const ConvexPolyhedron& A = *pair.A;
+  const ConvexPolyhedron& B = *pair.B;
+  q.pair = &pair;
   q.size = std::min(A.bounding_radius, B.bounding_radius);
-  q.n = pa.rotation.transpose() * normal_world;
+  q.n = pair.rotation_a.transpose() * normal_world;
   const Mat3 plane = frame_from_normal(q.n);
   q.t = plane.col(1);
   q.s = plane.col(2);
-  q.vb.resize(B.vertices.size());
-  for (std::size_t i = 0; i < q.vb.size(); ++i) q.vb[i] = q.rotation * B.vertices[i] + q.translation;
+  q.heights_a.resize(A.vertices.size());
   q.top_a = -std::numeric_limits<double>::infinity();
-  for (const Vec3& v : A.vertices) q.top_a = std::max(q.top_a, q.n.dot(v));
+  for (std::size_t i = 0; i < A.vertices.size(); ++i) {
+    q.heights_a[i] = q.n.dot(A.vertices[i]);
+    q.top_a = std::max(q.top_a, q.heights_a[i]);
+  }
+  q.heights_b.resize(pair.vb.size());
   q.bottom_b = std::numeric_limits<double>::infinity();
-  for (const Vec3& v : q.vb) q.bottom_b = std::min(q.bottom_b, q.n.dot(v));
+  for (std::size_t i = 0; i < pair.vb.size(); ++i) {
+    q.heights_b[i] = q.n.dot(pair.vb[i]);
+    q.bottom_b = std::min(q.bottom_b, q.heights_b[i]);
+  }
   q.linear_tolerance = 1e-7 * q.size;
   q.feature_tolerance = 1e-3 * q.size;
-  for (std::size_t f = 0; f < B.face_normals.size(); ++f) {
-    const Vec3 m = q.rotation * B.face_normals[f];
-    const double down = m.dot(q.n);
-    if (down >= -1e-6) continue;
-    q.faces_down.push_back({m.dot(q.t), m.dot(q.s), down, B.face_offsets[f] + m.dot(q.translation)});
+  surfaces_on_plane(q);
+}
+
+/// Plane coordinates of the vertices within `depth` of their body's extreme (the deepest caps
+/// and ridges read no others): each computed once, not once per cap.
+void project_cap_vertices(PairOnPlane& q, double depth) {
+  const PolyhedronPair& pair = *q.pair;
+  q.plane_a.resize(q.heights_a.size());
+  for (std::size_t i = 0; i < q.heights_a.size(); ++i) {
+    if (q.heights_a[i] < q.top_a - depth) continue;
+    const Vec3& v = pair.A->vertices[i];
+    q.plane_a[i] = Vec2(q.t.dot(v), q.s.dot(v));
   }
-  double best_up = -2.0;
-  for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
-    if (A.face_normals[f].dot(q.n) > best_up) {
-      best_up = A.face_normals[f].dot(q.n);
-      q.face_a = static_cast<int>(f);
-    }
+  q.plane_b.resize(q.heights_b.size());
+  for (std::size_t i = 0; i < q.heights_b.size(); ++i) {
+    if (q.heights_b[i] > q.bottom_b + depth) continue;
+    const Vec3& v = pair.vb[i];
+    q.plane_b[i] = Vec2(q.t.dot(v), q.s.dot(v));
   }
-  double best_down = 2.0;
-  for (std::size_t f = 0; f < B.face_normals.size(); ++f) {
-    const double d = (q.rotation * B.face_normals[f]).dot(q.n);
-    if (d < best_down) {
-      best_down = d;
-      q.face_b = static_cast<int>(f);
-    }
-  }
-  return q;
 }
 
 /// A's upper surface above the plane point p: the lower envelope of its faces turned towards n.
 double height_a(const PairOnPlane& q, const Vec2& p) {
   double z = std::numeric_limits<double>::infinity();
-  for (std::size_t f = 0; f < q.A->face_normals.size(); ++f) {
-    const Vec3& m = q.A->face_normals[f];
-    const double up = m.dot(q.n);
-    if (up <= 1e-6) continue;
-    z = std::min(z, (q.A->face_offsets[f] - p.x() * m.dot(q.t) - p.y() * m.dot(q.s)) / up);
-  }
+  for (const auto& m : q.faces_up) z = std::min(z, (m[3] - p.x() * m[0] - p.y() * m[1]) / m[2]);
   return z;
 }
 
@@ -120,18 +132,19 @@ double height_b(const PairOnPlane& q, const Vec2& p) {
 }
 
 /// The caps of A and B: their vertices within `depth` of the body's extreme along n, projected
-/// on the plane, as convex hulls.
-std::pair<Polygon, Polygon> caps(const PairOnPlane& q, double depth) {
-  Polygon cap_a, cap_b;
-  for (std::size_t i = 0; i < q.A->vertices.size(); ++i) {
-    const Vec3& v = q.A->vertices[i];
-    if (q.n.dot(v) >= q.top_a - depth) cap_a.push_back({Vec2(q.t.dot(v), q.s.dot(v)), static_cast<int>(i)});
+/// on the plane, as convex hulls (into cap_a and cap_b). `depth` is at most the depth given to
+/// project_cap_vertices.
+void caps(PairOnPlane& q, double depth, Polygon& cap_a, Polygon& cap_b) {
+  q.cap_a.clear();
+  for (std::size_t i = 0; i < q.heights_a.size(); ++i) {
+    if (q.heights_a[i] >= q.top_a - depth) q.cap_a.push_back({q.plane_a[i], static_cast<int>(i)});
   }
-  for (std::size_t i = 0; i < q.vb.size(); ++i) {
-    const Vec3& v = q.vb[i];
-    if (q.n.dot(v) <= q.bottom_b + depth) cap_b.push_back({Vec2(q.t.dot(v), q.s.dot(v)), static_cast<int>(i)});
+  q.cap_b.clear();
+  for (std::size_t i = 0; i < q.heights_b.size(); ++i) {
+    if (q.heights_b[i] <= q.bottom_b + depth) q.cap_b.push_back({q.plane_b[i], static_cast<int>(i)});
   }
-  return {hull_2d(std::move(cap_a), q.linear_tolerance), hull_2d(std::move(cap_b), q.linear_tolerance)};
+  hull_2d(q.cap_a, q.linear_tolerance, cap_a, q.hull);
+  hull_2d(q.cap_b, q.linear_tolerance, cap_b, q.hull);
 }
 
 /// Adds the candidate at plane point p (surface heights za of A, zb of B) unless one lies within
@@ -148,15 +161,16 @@ void add_candidate(const PairOnPlane& q, const Vec2& p, double za, double zb, st
 /// then the crossings of their edges.
 void add_polygon_intersection(const PairOnPlane& q, const Polygon& polygon_a, const Polygon& polygon_b,
                               std::vector<Candidate>& candidates) {
+  const std::size_t vertices_a = q.heights_a.size(), vertices_b = q.heights_b.size();
   for (const CapVertex& c : polygon_a) {
     if (inside(polygon_b, c.p, q.feature_tolerance)) {
-      add_candidate(q, c.p, q.n.dot(q.A->vertices[static_cast<std::size_t>(c.vertex)]),
-                    height_b(q, clamp_into(polygon_b, c.p)), vertex_code(c.vertex), face_code(q.face_b), candidates);
+      add_candidate(q, c.p, q.heights_a[static_cast<std::size_t>(c.vertex)], height_b(q, clamp_into(polygon_b, c.p)),
+                    vertex_code(c.vertex), face_code(q.face_b), candidates);
     }
   }
   for (const CapVertex& c : polygon_b) {
     if (inside(polygon_a, c.p, q.feature_tolerance)) {
-      add_candidate(q, c.p, height_a(q, clamp_into(polygon_a, c.p)), q.n.dot(q.vb[static_cast<std::size_t>(c.vertex)]),
+      add_candidate(q, c.p, height_a(q, clamp_into(polygon_a, c.p)), q.heights_b[static_cast<std::size_t>(c.vertex)],
                     face_code(q.face_a), vertex_code(c.vertex), candidates);
     }
   }
@@ -174,8 +188,8 @@ void add_polygon_intersection(const PairOnPlane& q, const Polygon& polygon_a, co
       // there (exact on a true edge, and above a chord).
       const double za = height_a(q, at);
       const double zb = height_b(q, at);
-      add_candidate(q, at, za, zb, edge_code(a0.vertex, a1.vertex, q.A->vertices.size()),
-                    edge_code(b0.vertex, b1.vertex, q.B->vertices.size()), candidates);
+      add_candidate(q, at, za, zb, edge_code(a0.vertex, a1.vertex, vertices_a),
+                    edge_code(b0.vertex, b1.vertex, vertices_b), candidates);
     }
   }
 }
@@ -190,7 +204,7 @@ void add_closest_features_point(const PairOnPlane& q, const Polygon& polygon_a, 
   std::uint32_t feature_a = vertex_code(polygon_a[0].vertex), feature_b = vertex_code(polygon_b[0].vertex);
   for (const CapVertex& x : polygon_a) {
     std::uint32_t f = 0;
-    const Vec2 c = closest_on_boundary(polygon_b, x.p, q.B->vertices.size(), f);
+    const Vec2 c = closest_on_boundary(polygon_b, x.p, q.heights_b.size(), f);
     if ((c - x.p).squaredNorm() < best) {
       best = (c - x.p).squaredNorm();
       point_a = x.p;
@@ -201,7 +215,7 @@ void add_closest_features_point(const PairOnPlane& q, const Polygon& polygon_a, 
   }
   for (const CapVertex& y : polygon_b) {
     std::uint32_t f = 0;
-    const Vec2 c = closest_on_boundary(polygon_a, y.p, q.A->vertices.size(), f);
+    const Vec2 c = closest_on_boundary(polygon_a, y.p, q.heights_a.size(), f);
     if ((c - y.p).squaredNorm() < best) {
       best = (c - y.p).squaredNorm();
       point_a = c;
@@ -216,31 +230,35 @@ void add_closest_features_point(const PairOnPlane& q, const Polygon& polygon_a, 
 /// Ridges inside the caps: where an edge of one body crosses a curved cap of the other, the gap
 /// along it has its kinks (and the overlap its corners) at the cap's interior edges, which the
 /// caps' hulls do not see; missing them lets a sliding edge sink into the next facet in one step.
-/// Adds the crossings of the edges of A and B within `depth` of their extremes.
-void add_ridge_crossings(const PairOnPlane& q, double depth, std::vector<Candidate>& candidates) {
-  struct Segment {
-    CapVertex from, to;
-  };
-  std::vector<Segment> ridges_a, ridges_b;
-  for (const auto& [i, j] : q.A->edges) {
-    const Vec3& x = q.A->vertices[static_cast<std::size_t>(i)];
-    const Vec3& y = q.A->vertices[static_cast<std::size_t>(j)];
-    if (q.n.dot(x) < q.top_a - depth || q.n.dot(y) < q.top_a - depth) continue;
-    ridges_a.push_back({{Vec2(q.t.dot(x), q.s.dot(x)), i}, {Vec2(q.t.dot(y), q.s.dot(y)), j}});
+/// Adds the crossings of the edges of A and B within `depth` of their extremes (a ridge is kept
+/// as its two ends, consecutive in ridges_a / ridges_b).
+void add_ridge_crossings(PairOnPlane& q, double depth) {
+  const ConvexPolyhedron& A = *q.pair->A;
+  const ConvexPolyhedron& B = *q.pair->B;
+  q.ridges_a.clear();
+  for (const auto& [i, j] : A.edges) {
+    const auto x = static_cast<std::size_t>(i), y = static_cast<std::size_t>(j);
+    if (q.heights_a[x] < q.top_a - depth || q.heights_a[y] < q.top_a - depth) continue;
+    q.ridges_a.push_back({q.plane_a[x], i});
+    q.ridges_a.push_back({q.plane_a[y], j});
   }
-  for (const auto& [i, j] : q.B->edges) {
-    const Vec3& x = q.vb[static_cast<std::size_t>(i)];
-    const Vec3& y = q.vb[static_cast<std::size_t>(j)];
-    if (q.n.dot(x) > q.bottom_b + depth || q.n.dot(y) > q.bottom_b + depth) continue;
-    ridges_b.push_back({{Vec2(q.t.dot(x), q.s.dot(x)), i}, {Vec2(q.t.dot(y), q.s.dot(y)), j}});
+  q.ridges_b.clear();
+  for (const auto& [i, j] : B.edges) {
+    const auto x = static_cast<std::size_t>(i), y = static_cast<std::size_t>(j);
+    if (q.heights_b[x] > q.bottom_b + depth || q.heights_b[y] > q.bottom_b + depth) continue;
+    q.ridges_b.push_back({q.plane_b[x], i});
+    q.ridges_b.push_back({q.plane_b[y], j});
   }
-  for (const Segment& ea : ridges_a) {
-    for (const Segment& eb : ridges_b) {
+  for (std::size_t ea = 0; ea < q.ridges_a.size(); ea += 2) {
+    const CapVertex& from_a = q.ridges_a[ea];
+    const CapVertex& to_a = q.ridges_a[ea + 1];
+    for (std::size_t eb = 0; eb < q.ridges_b.size(); eb += 2) {
+      const CapVertex& from_b = q.ridges_b[eb];
+      const CapVertex& to_b = q.ridges_b[eb + 1];
       Vec2 at;
-      if (!segments_cross(ea.from.p, ea.to.p, eb.from.p, eb.to.p, at)) continue;
-      add_candidate(q, at, height_a(q, at), height_b(q, at),
-                    edge_code(ea.from.vertex, ea.to.vertex, q.A->vertices.size()),
-                    edge_code(eb.from.vertex, eb.to.vertex, q.B->vertices.size()), candidates);
+      if (!segments_cross(from_a.p, to_a.p, from_b.p, to_b.p, at)) continue;
+      add_candidate(q, at, height_a(q, at), height_b(q, at), edge_code(from_a.vertex, to_a.vertex, A.vertices.size()),
+                    edge_code(from_b.vertex, to_b.vertex, B.vertices.size()), q.candidates);
     }
   }
 }
@@ -250,11 +268,12 @@ void add_ridge_crossings(const PairOnPlane& q, double depth, std::vector<Candida
 /// alert distance) are projected on the plane, their convex polygons intersected (vertices of
 /// one inside the other, crossings of their edges), and each point of the intersection gets
 /// its local gap from the two bodies' surfaces above and below it. Vertex-face gives 1 point,
-/// edge-edge 1, edge-face 2, face-face the clipped polygon, reduced to <= 4 points.
-void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, std::uint32_t body_a,
-                              std::uint32_t body_b, const Vec3& normal_world, double gap, double alert_distance,
+/// edge-edge 1, edge-face 2, face-face the clipped polygon, reduced to <= 4 points. Reads B's
+/// vertices as the common-plane search left them in A's frame (`pair`).
+void contacts_on_common_plane(const PolyhedronPair& pair, std::uint32_t body_a, std::uint32_t body_b,
+                              const Vec3& normal_world, double gap, double alert_distance, PairOnPlane& q,
                               ContactList& contacts) {
-  const PairOnPlane q = place_on_plane(pa, pb, normal_world);
+  place_on_plane(pair, normal_world, q);
   // Two sets of caps: the support features (depth ~ 0), whose overlap holds the deepest point
   // (at the optimal plane the supports' projections meet), and the alert caps, which add the
   // points of a nearly flush face that may close within the alert distance: a local gap below
@@ -262,24 +281,26 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
   // bodies touched (gap clamped at 0), so a deep overlap does not turn them into curved patches
   // whose hull hides their lowest vertices.
   const double alert_depth = std::max(alert_distance - std::max(gap, 0.0), 0.0) + q.linear_tolerance;
-  const auto support_polygons = caps(q, q.linear_tolerance);
-  const auto alert_polygons = caps(q, alert_depth);
-  std::vector<Candidate> candidates;
-  add_polygon_intersection(q, support_polygons.first, support_polygons.second, candidates);
-  if (candidates.empty()) add_closest_features_point(q, support_polygons.first, support_polygons.second, candidates);
-  add_polygon_intersection(q, alert_polygons.first, alert_polygons.second, candidates);
-  add_ridge_crossings(q, alert_depth, candidates);
+  project_cap_vertices(q, alert_depth);
+  caps(q, q.linear_tolerance, q.support_a, q.support_b);
+  caps(q, alert_depth, q.alert_a, q.alert_b);
+  q.candidates.clear();
+  add_polygon_intersection(q, q.support_a, q.support_b, q.candidates);
+  if (q.candidates.empty()) add_closest_features_point(q, q.support_a, q.support_b, q.candidates);
+  add_polygon_intersection(q, q.alert_a, q.alert_b, q.candidates);
+  add_ridge_crossings(q, alert_depth);
 
-  std::vector<Candidate> active;
-  for (const Candidate& c : candidates) {
-    if (c.gap < alert_distance) active.push_back(c);
+  q.active.clear();
+  for (const Candidate& c : q.candidates) {
+    if (c.gap < alert_distance) q.active.push_back(c);
   }
-  const std::vector<Candidate> kept =
-      add_off_plane_points(active, reduce_to_four(active, 1e-12 * q.size * q.size),
-                           std::max(q.linear_tolerance, 0.01 * alert_distance), max_points_per_pair);
-  for (const Candidate& c : kept) {
+  reduce_to_four(q.active, 1e-12 * q.size * q.size, q.kept, q.reduction);
+  add_off_plane_points(q.active, q.kept, std::max(q.linear_tolerance, 0.01 * alert_distance), max_points_per_pair,
+                       q.reduction);
+  const Mat3 frame = frame_from_normal(normal_world);
+  for (const Candidate& c : q.kept) {
     const Vec3 local = c.p.x() * q.t + c.p.y() * q.s + 0.5 * (c.height_a + c.height_b) * q.n;
-    push_contact(body_a, body_b, c.feature_a, c.feature_b, normal_world, pa.rotation * local + pa.position, c.gap,
+    push_contact(body_a, body_b, c.feature_a, c.feature_b, frame, pair.rotation_a * local + pair.position_a, c.gap,
                  contacts);
   }
 }
@@ -288,32 +309,47 @@ void contacts_on_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWor
 
 void collide_polyhedron_polyhedron(const Model& model, const State& state, std::uint32_t a, std::uint32_t b,
                                    double alert_distance, const Vec3* previous_common_normal, ContactList& contacts,
-                                   Vec3& common_normal) {
+                                   Vec3& common_normal, PolyhedronScratch& scratch) {
   // Bounding spheres first: most broad-phase pairs stop here.
   const double centre_distance = (state.position[b] - state.position[a]).norm();
   if (centre_distance - model.bounding_radius[a] - model.bounding_radius[b] >= alert_distance) return;
-  const PolyhedronInWorld pa = placed(model, state, a);
-  const PolyhedronInWorld pb = placed(model, state, b);
-  const CommonPlane plane = find_common_plane(pa, pb, previous_common_normal, alert_distance);
+  place_pair(placed(model, state, a), placed(model, state, b), scratch.pair);
+  const CommonPlane plane = find_common_plane(scratch.pair, previous_common_normal, alert_distance);
   common_normal = plane.normal;
   if (!plane.complete || plane.gap >= alert_distance) return;
-  contacts_on_common_plane(pa, pb, a, b, plane.normal, plane.gap, alert_distance, contacts);
+  contacts_on_common_plane(scratch.pair, a, b, plane.normal, plane.gap, alert_distance, scratch.plane, contacts);
+}
+
+void collide_polyhedron_polyhedron(const Model& model, const State& state, std::uint32_t a, std::uint32_t b,
+                                   double alert_distance, const Vec3* previous_common_normal, ContactList& contacts,
+                                   Vec3& common_normal) {
+  PolyhedronScratch scratch;
+  collide_polyhedron_polyhedron(model, state, a, b, alert_distance, previous_common_normal, contacts, common_normal,
+                                scratch);
+}
+
+void collide_box_polyhedron(const Model& model, const State& state, std::uint32_t wall, std::uint32_t grain,
+                            double alert_distance, const Vec3* previous_common_normal, ContactList& contacts,
+                            Vec3& common_normal, PolyhedronScratch& scratch) {
+  // A box wall is a convex polyhedron with 8 vertices: the same common-plane method applies.
+  const ConvexPolyhedron box =
+      make_box_polyhedron(model.boxes[static_cast<std::size_t>(model.shape_index[wall])].half_extents);
+  const PolyhedronInWorld pa{&box, state.position[wall], state.orientation[wall].toRotationMatrix()};
+  place_pair(pa, placed(model, state, grain), scratch.pair);
+  // The warm-start memory is keyed by the ordered pair; the dispatcher passes (wall, grain) and
+  // stores the normal as returned here (from the wall to the grain).
+  const CommonPlane plane = find_common_plane(scratch.pair, previous_common_normal, alert_distance);
+  common_normal = plane.normal;
+  if (!plane.complete || plane.gap >= alert_distance) return;
+  contacts_on_common_plane(scratch.pair, wall, grain, plane.normal, plane.gap, alert_distance, scratch.plane, contacts);
 }
 
 void collide_box_polyhedron(const Model& model, const State& state, std::uint32_t wall, std::uint32_t grain,
                             double alert_distance, const Vec3* previous_common_normal, ContactList& contacts,
                             Vec3& common_normal) {
-  // A box wall is a convex polyhedron with 8 vertices: the same common-plane method applies.
-  const ConvexPolyhedron box =
-      make_box_polyhedron(model.boxes[static_cast<std::size_t>(model.shape_index[wall])].half_extents);
-  const PolyhedronInWorld pa{&box, state.position[wall], state.orientation[wall].toRotationMatrix()};
-  const PolyhedronInWorld pb = placed(model, state, grain);
-  // The warm-start memory is keyed by the ordered pair; the dispatcher passes (wall, grain) and
-  // stores the normal as returned here (from the wall to the grain).
-  const CommonPlane plane = find_common_plane(pa, pb, previous_common_normal, alert_distance);
-  common_normal = plane.normal;
-  if (!plane.complete || plane.gap >= alert_distance) return;
-  contacts_on_common_plane(pa, pb, wall, grain, plane.normal, plane.gap, alert_distance, contacts);
+  PolyhedronScratch scratch;
+  collide_box_polyhedron(model, state, wall, grain, alert_distance, previous_common_normal, contacts, common_normal,
+                         scratch);
 }
 
 void collide_plane_polyhedron(const Model& model, const State& state, std::uint32_t wall, std::uint32_t grain,

@@ -97,6 +97,7 @@ int narrow(int pairs) {
   std::vector<Vec3> normals(static_cast<std::size_t>(pairs));
   std::size_t contacts = 0;
   ContactList list;
+  PolyhedronScratch scratch;  // one per thread, reused from pair to pair as in detect_contacts
   std::uint64_t hash_cold = 14695981039346656037ull, hash_warm = hash_cold, hash_plane = hash_cold;
   // Cold.
   auto t0 = Clock::now();
@@ -107,7 +108,7 @@ int narrow(int pairs) {
       list.clear();
       collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
                                     static_cast<std::uint32_t>(2 * k + 1), alert, nullptr, list,
-                                    normals[static_cast<std::size_t>(k)]);
+                                    normals[static_cast<std::size_t>(k)], scratch);
       contacts += list.size();
       if (rounds == 0) {
         for (const Contact& c : list) hash_contact(hash_cold, c);
@@ -134,7 +135,7 @@ int narrow(int pairs) {
       list.clear();
       collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
                                     static_cast<std::uint32_t>(2 * k + 1), alert, &normals[static_cast<std::size_t>(k)],
-                                    list, out);
+                                    list, out, scratch);
       if (rounds == 0) {
         for (const Contact& c : list) hash_contact(hash_warm, c);
         for (int i = 0; i < 3; ++i) hash_bytes(hash_warm, out[i]);
@@ -153,7 +154,8 @@ int narrow(int pairs) {
       const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
       const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
       const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      const CommonPlane plane = find_common_plane(pa, pb, nullptr, alert);
+      place_pair(pa, pb, scratch.pair);
+      const CommonPlane plane = find_common_plane(scratch.pair, nullptr, alert);
       sink += plane.gap;
       if (rounds == 0) {
         for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
@@ -173,7 +175,8 @@ int narrow(int pairs) {
       const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
       const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
       const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      const CommonPlane plane = find_common_plane(pa, pb, &normals[static_cast<std::size_t>(k)], alert);
+      place_pair(pa, pb, scratch.pair);
+      const CommonPlane plane = find_common_plane(scratch.pair, &normals[static_cast<std::size_t>(k)], alert);
       sink += plane.gap;
       if (rounds == 0) {
         for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
