@@ -45,7 +45,10 @@ void surfaces_on_plane(PairOnPlane& q) {
   const PolyhedronPair& pair = *q.pair;
   const ConvexPolyhedron& A = *pair.A;
   const ConvexPolyhedron& B = *pair.B;
-  q.faces_up.clear();
+  // Every face is written and the count advanced only for those turned the right way: about
+  // half the faces are, in no order a branch predictor could learn.
+  q.faces_up.resize(A.face_normals.size());
+  std::size_t up_count = 0;
   double best_up = -2.0;
   for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
     const Vec3& m = A.face_normals[f];
@@ -54,10 +57,12 @@ void surfaces_on_plane(PairOnPlane& q) {
       best_up = up;
       q.face_a = static_cast<int>(f);
     }
-    if (up <= 1e-6) continue;
-    q.faces_up.push_back({m.dot(q.t), m.dot(q.s), up, A.face_offsets[f]});
+    q.faces_up[up_count] = {m.dot(q.t), m.dot(q.s), up, A.face_offsets[f]};
+    up_count += up > 1e-6 ? 1 : 0;
   }
-  q.faces_down.clear();
+  q.faces_up.resize(up_count);
+  q.faces_down.resize(pair.nb.size());
+  std::size_t down_count = 0;
   double best_down = 2.0;
   for (std::size_t f = 0; f < pair.nb.size(); ++f) {
     const Vec3& m = pair.nb[f];
@@ -66,9 +71,10 @@ void surfaces_on_plane(PairOnPlane& q) {
       best_down = down;
       q.face_b = static_cast<int>(f);
     }
-    if (down >= -1e-6) continue;
-    q.faces_down.push_back({m.dot(q.t), m.dot(q.s), down, B.face_offsets[f] + m.dot(pair.translation)});
+    q.faces_down[down_count] = {m.dot(q.t), m.dot(q.s), down, B.face_offsets[f] + m.dot(pair.translation)};
+    down_count += down < -1e-6 ? 1 : 0;
   }
+  q.faces_down.resize(down_count);
 }
 
 /// Sets the plane's frame in A's frame and what every stage reads: each vertex's height along n
@@ -147,13 +153,21 @@ void caps(PairOnPlane& q, double depth, Polygon& cap_a, Polygon& cap_b) {
   hull_2d(q.cap_b, q.linear_tolerance, cap_b, q.hull);
 }
 
+/// Does a candidate lie within the feature tolerance of plane point p already (coincident
+/// features)? Asked before the surface heights are computed: the support and alert caps and
+/// the ridges find many of the same points, and a height costs a division per face.
+bool coincides(const PairOnPlane& q, const Vec2& p, const std::vector<Candidate>& candidates) {
+  for (const Candidate& c : candidates) {
+    if ((c.p - p).norm() <= q.feature_tolerance) return true;
+  }
+  return false;
+}
+
 /// Adds the candidate at plane point p (surface heights za of A, zb of B) unless one lies within
 /// the feature tolerance already (coincident features).
 void add_candidate(const PairOnPlane& q, const Vec2& p, double za, double zb, std::uint32_t feature_a,
                    std::uint32_t feature_b, std::vector<Candidate>& candidates) {
-  for (const Candidate& c : candidates) {
-    if ((c.p - p).norm() <= q.feature_tolerance) return;
-  }
+  if (coincides(q, p, candidates)) return;
   candidates.push_back({p, zb - za, za, zb, feature_a, feature_b});
 }
 
@@ -163,13 +177,13 @@ void add_polygon_intersection(const PairOnPlane& q, const Polygon& polygon_a, co
                               std::vector<Candidate>& candidates) {
   const std::size_t vertices_a = q.heights_a.size(), vertices_b = q.heights_b.size();
   for (const CapVertex& c : polygon_a) {
-    if (inside(polygon_b, c.p, q.feature_tolerance)) {
+    if (inside(polygon_b, c.p, q.feature_tolerance) && !coincides(q, c.p, candidates)) {
       add_candidate(q, c.p, q.heights_a[static_cast<std::size_t>(c.vertex)], height_b(q, clamp_into(polygon_b, c.p)),
                     vertex_code(c.vertex), face_code(q.face_b), candidates);
     }
   }
   for (const CapVertex& c : polygon_b) {
-    if (inside(polygon_a, c.p, q.feature_tolerance)) {
+    if (inside(polygon_a, c.p, q.feature_tolerance) && !coincides(q, c.p, candidates)) {
       add_candidate(q, c.p, height_a(q, clamp_into(polygon_a, c.p)), q.heights_b[static_cast<std::size_t>(c.vertex)],
                     face_code(q.face_a), vertex_code(c.vertex), candidates);
     }
@@ -183,7 +197,7 @@ void add_polygon_intersection(const PairOnPlane& q, const Polygon& polygon_a, co
       const CapVertex& b0 = polygon_b[j];
       const CapVertex& b1 = polygon_b[(j + 1) % polygon_b.size()];
       Vec2 at;
-      if (!segments_cross(a0.p, a1.p, b0.p, b1.p, at)) continue;
+      if (!segments_cross(a0.p, a1.p, b0.p, b1.p, at) || coincides(q, at, candidates)) continue;
       // The cap hull's edges may be chords across a curved cap: take the surfaces' heights
       // there (exact on a true edge, and above a chord).
       const double za = height_a(q, at);
@@ -256,7 +270,7 @@ void add_ridge_crossings(PairOnPlane& q, double depth) {
       const CapVertex& from_b = q.ridges_b[eb];
       const CapVertex& to_b = q.ridges_b[eb + 1];
       Vec2 at;
-      if (!segments_cross(from_a.p, to_a.p, from_b.p, to_b.p, at)) continue;
+      if (!segments_cross(from_a.p, to_a.p, from_b.p, to_b.p, at) || coincides(q, at, q.candidates)) continue;
       add_candidate(q, at, height_a(q, at), height_b(q, at), edge_code(from_a.vertex, to_a.vertex, A.vertices.size()),
                     edge_code(from_b.vertex, to_b.vertex, B.vertices.size()), q.candidates);
     }
