@@ -84,8 +84,10 @@ struct SimplexVertex {
 };
 
 struct GjkResult {
-  bool separated = false;       // false: touching or overlapping (within round-off)
-  Vec3 closest = Vec3::Zero();  // the point of D closest to the origin (direction A -> B)
+  bool separated = false;                // false: touching or overlapping (within round-off)
+  Vec3 closest = Vec3::Zero();           // the point of D closest to the origin (direction A -> B)
+  std::array<SimplexVertex, 4> simplex;  // the last simplex: support vertices near the contact
+  int count = 0;                         // its vertex count
 };
 
 /// Closest point to the origin of the simplex s[0..count), reduced in place to the vertices
@@ -231,12 +233,17 @@ GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, c
   GjkResult result;
   std::array<SimplexVertex, 4> simplex;
   int count = 1;
+  auto keep_simplex = [&](GjkResult& out) {
+    out.simplex = simplex;
+    out.count = count;
+    return out;
+  };
   simplex[0] = support(start_direction);
   Vec3 v = simplex[0].w;
   const double touching = 1e-12 * size;
   for (int iteration = 0; iteration < 64; ++iteration) {
     const double v2 = v.squaredNorm();
-    if (v2 <= touching * touching) return result;
+    if (v2 <= touching * touching) return keep_simplex(result);
     const SimplexVertex w = support(v);
     // Stop when the lower bound v.w/|v| has reached |v| to relative 1e-12 (Gilbert et al. 1988)
     // or the new support point is already in the simplex (no progress possible).
@@ -248,11 +255,11 @@ GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, c
     }
     if (repeated) break;
     simplex[static_cast<std::size_t>(count++)] = w;
-    if (!reduce_simplex(simplex, count, v)) return result;  // origin enclosed: overlapping
+    if (!reduce_simplex(simplex, count, v)) return keep_simplex(result);  // origin enclosed: overlapping
   }
   result.separated = v.norm() > touching;
   result.closest = v;
-  return result;
+  return keep_simplex(result);
 }
 
 }  // namespace
@@ -288,15 +295,51 @@ struct BestPlane {
 /// f(n) = min_B n.y - max_A n.x, for n in A's frame.
 double separation(const PolyhedronPair& q, const Vec3& n) { return min_dot(q.vb, n) - max_dot(q.A->vertices, n); }
 
+/// Vertices of A and of B met by the warm start and by GJK: supports near the contact. Over any
+/// subset of B's vertices the least n.y is at least the least over all of them (the same dot
+/// products, in floating point too), and likewise for A's greatest; so the few witnesses bound a
+/// candidate's f(n) from above exactly, and a candidate whose bound cannot beat the best is
+/// skipped without its full support scans, with the same result (Ericson 2005, sec. 9.5 prunes
+/// the same way).
+struct Witnesses {
+  std::array<int, 5> a{};  ///< vertices of A
+  std::array<int, 5> b{};  ///< vertices of B
+  int count = 0;           ///< used entries of a and b
+};
+
+/// The least n.y over B's witnesses (>= min_dot(q.vb, n)).
+double witness_min_b(const PolyhedronPair& q, const Witnesses& w, const Vec3& n) {
+  double least = infinity;
+  for (int k = 0; k < w.count; ++k) least = std::min(least, n.dot(q.vb[static_cast<std::size_t>(w.b[k])]));
+  return least;
+}
+
+/// The least n.x over A's witnesses (>= min_dot(A.vertices, n)).
+double witness_min_a(const PolyhedronPair& q, const Witnesses& w, const Vec3& n) {
+  double least = infinity;
+  for (int k = 0; k < w.count; ++k) least = std::min(least, n.dot(q.A->vertices[static_cast<std::size_t>(w.a[k])]));
+  return least;
+}
+
+/// The greatest n.x over A's witnesses (<= max_dot(A.vertices, n)).
+double witness_max_a(const PolyhedronPair& q, const Witnesses& w, const Vec3& n) {
+  double greatest = -infinity;
+  for (int k = 0; k < w.count; ++k) {
+    greatest = std::max(greatest, n.dot(q.A->vertices[static_cast<std::size_t>(w.a[k])]));
+  }
+  return greatest;
+}
+
 /// The face normals of A and (negated) of B as candidates. A face is skipped when a cheap bound
 /// (the other body's centroid lies inside it) cannot beat the best value.
-void search_face_normals(const PolyhedronPair& q, BestPlane& best) {
+void search_face_normals(const PolyhedronPair& q, const Witnesses& w, BestPlane& best) {
   const ConvexPolyhedron& A = *q.A;
   const ConvexPolyhedron& B = *q.B;
   // Faces of A: f(n_f) = min_B n_f.y - d_f <= n_f.c_B - d_f since B's centroid is inside B.
   for (std::size_t f = 0; f < A.face_normals.size(); ++f) {
     const Vec3& n = A.face_normals[f];
     if (n.dot(q.translation) - A.face_offsets[f] <= best.value) continue;
+    if (witness_min_b(q, w, n) - A.face_offsets[f] <= best.value) continue;
     const double value = min_dot(q.vb, n) - A.face_offsets[f];
     if (value > best.value) best = {value, n, CommonPlaneSource::face_a};
   }
@@ -305,6 +348,7 @@ void search_face_normals(const PolyhedronPair& q, BestPlane& best) {
     const Vec3& m = q.nb[f];
     const double offset = B.face_offsets[f] + m.dot(q.translation);
     if (-offset <= best.value) continue;
+    if (witness_min_a(q, w, m) - offset <= best.value) continue;
     const double value = min_dot(A.vertices, m) - offset;
     if (value > best.value) best = {value, -m, CommonPlaneSource::face_b};
   }
@@ -329,7 +373,17 @@ unsigned char outcode(const Vec3& p, const Vec3& lower, const Vec3& upper) {
 /// segment_meets_box, at a fraction of its cost (it was a fifth of the narrow phase).
 bool segment_meets_box_coded(const Vec3& p, const Vec3& q, unsigned code_p, unsigned code_q, const Vec3& lower,
                              const Vec3& upper) {
-  if ((code_p | code_q) == 0) return true;
+  // p inside: t = 0 lies in every slab's interval (each slab gives t1 <= 0 <= t2).
+  if (code_p == 0) return true;
+  // q inside: t = 1 lies in every slab's interval (lower <= q gives (lower - p) / d <= 1 after
+  // rounding, which is monotone), unless the segment is parallel to a slab that p lies outside.
+  if (code_q == 0) {
+    bool parallel_outside = false;
+    for (int k = 0; k < 3; ++k) {
+      if (((code_p >> (2 * k)) & 3u) != 0 && std::abs(q[k] - p[k]) < 1e-300) parallel_outside = true;
+    }
+    if (!parallel_outside) return true;
+  }
   const unsigned common = code_p & code_q;
   if (common != 0) {
     const int k = std::countr_zero(common) / 2;
@@ -376,7 +430,7 @@ void edges_within_reach(PolyhedronPair& q, double reach) {
 
 /// The cross products of an edge of A and an edge of B that form a face of the Minkowski
 /// difference (their arcs cross on the Gauss map, Gregorius 2013) as candidates.
-void search_edge_pairs(PolyhedronPair& q, double touching, double size, BestPlane& best) {
+void search_edge_pairs(PolyhedronPair& q, const Witnesses& w, double touching, double size, BestPlane& best) {
   const ConvexPolyhedron& A = *q.A;
   const ConvexPolyhedron& B = *q.B;
   edges_within_reach(q, std::max(-best.value, touching) + 1e-12 * size);
@@ -410,10 +464,25 @@ void search_edge_pairs(PolyhedronPair& q, double touching, double size, BestPlan
       // Exact for a polytope (the edges are the supports); confirmed with the full supports so
       // slightly non-planar merged faces can never report more separation than there is.
       if (n.dot(pb0 - pa0) <= best.value) continue;
+      if (witness_min_b(q, w, n) - witness_max_a(q, w, n) <= best.value) continue;
       const double value = separation(q, n);
       if (value > best.value) best = {value, n, CommonPlaneSource::edge_edge};
     }
   }
+}
+
+/// The witnesses: the supports along the warm-start normal and the vertices of GJK's last simplex.
+Witnesses gather_witnesses(int support_a, int support_b, const GjkResult& gjk) {
+  Witnesses w;
+  w.a[0] = support_a;
+  w.b[0] = support_b;
+  w.count = 1;
+  for (int k = 0; k < gjk.count; ++k) {
+    w.a[static_cast<std::size_t>(w.count)] = gjk.simplex[static_cast<std::size_t>(k)].ia;
+    w.b[static_cast<std::size_t>(w.count)] = gjk.simplex[static_cast<std::size_t>(k)].ib;
+    ++w.count;
+  }
+  return w;
 }
 
 /// Asks the memory system for every cache line of `values` without waiting for them.
@@ -482,7 +551,9 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
 
   // --- 1. the warm-start normal; f(n0) with B's support taken in B's own frame: no need to move B yet ---
   const Vec3 n0 = initial_normal_in_a(q.rotation_a, initial_normal, q.translation);
-  const double f0 = min_dot(B.vertices, q.rotation.transpose() * n0) + n0.dot(q.translation) - max_dot(A.vertices, n0);
+  int support_a = 0, support_b = 0;
+  const double f0 = min_dot(B.vertices, q.rotation.transpose() * n0, &support_b) + n0.dot(q.translation) -
+                    max_dot(A.vertices, n0, &support_a);
   if (f0 >= cutoff) {
     result.normal = q.rotation_a * n0;
     result.gap = f0;
@@ -510,8 +581,9 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
     // Every candidate value is <= touching here, so a candidate s that beats the best has
     // |s| < max(-best, touching).
     if (!gjk.separated) best.value = std::min(best.value, 0.0);
-    search_face_normals(q, best);
-    search_edge_pairs(q, touching, size, best);
+    const Witnesses witnesses = gather_witnesses(support_a, support_b, gjk);
+    search_face_normals(q, witnesses, best);
+    search_edge_pairs(q, witnesses, touching, size, best);
   }
   // --- 4. temporal coherence: keep last step's plane when it is as good as the optimum ---
   if (initial_normal != nullptr && best.source != CommonPlaneSource::warm_start && f0 >= best.value - 1e-9 * size) {
