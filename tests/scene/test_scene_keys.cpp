@@ -6,6 +6,7 @@
 #include "simulation/scene_keys.hpp"
 #include "simulation/scene_file.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -202,8 +203,7 @@ TEST(SceneKeys, GravityTablesMatchTheDocs) {
   documented_types.reserve(types.size());
   for (const DocRow& row : types) documented_types.push_back(row.key);
   std::vector<std::string> code_types;
-  for (const std::string_view type : scene_detail::gravity_types())
-    code_types.push_back("\"" + std::string(type) + "\"");
+  for (const std::string_view type : scene_detail::gravity_types()) code_types.push_back(fmt::format("\"{}\"", type));
   EXPECT_EQ(documented_types, code_types);
   std::vector<SectionKey<GravitySettings>> all;
   for (std::size_t t = 0; t < types.size() && t < scene_detail::gravity_types().size(); ++t) {
@@ -335,24 +335,38 @@ std::string inside_value(const SectionKey<Options>& key) {
 }
 
 /// Each key in turn: `section_text(key line)` is a scene setting only that key; `read` gives
-/// the options the parsed scene holds.
+/// the options the parsed scene holds. Fails listing every key that is not read back as written,
+/// not written back by scene_to_toml, or not refused at -7 (booleans excepted), and fails when the
+/// table has no key to check.
 template <class Options>
-void expect_keys_read_and_written(const std::vector<SectionKey<Options>>& keys,
-                                  const std::function<std::string(const std::string&, std::string_view)>& section_text,
-                                  const std::function<Options(const Scene&)>& read) {
+testing::AssertionResult keys_read_and_written(
+    const std::vector<SectionKey<Options>>& keys,
+    const std::function<std::string(const std::string&, std::string_view)>& section_text,
+    const std::function<Options(const Scene&)>& read) {
+  std::string failures;
+  std::size_t checked = 0;
   for (const auto& key : keys) {
     if (!key.option) continue;  // read by hand: the section's own tests
-    const std::string value = inside_value(key);
-    const Scene scene = parse_scene(
-        std::string(one_grain) + section_text(std::string(key.name) + " = " + value, key.name), "keys.toml");
+    ++checked;
+    const std::string name(key.name), value = inside_value(key);
+    const Scene scene = parse_scene(std::string(one_grain) + section_text(name + " = " + value, key.name), "keys.toml");
     Options options = read(scene);
-    EXPECT_EQ(written_value(key.option(options)), value) << key.name;
-    EXPECT_NE(scene_to_toml(scene).find("\n" + std::string(key.name) + " = " + value + "\n"), std::string::npos)
-        << key.name << " is not written back";
+    if (const std::string got = written_value(key.option(options)); got != value) {
+      failures.append("\n  ").append(name).append(": set to ").append(value).append(", read back as ").append(got);
+    }
+    if (scene_to_toml(scene).find("\n" + name + " = " + value + "\n") == std::string::npos) {
+      failures.append("\n  ").append(name).append(": not written back");
+    }
     if (std::holds_alternative<bool*>(key.option(options))) continue;
-    const std::string bad = std::string(one_grain) + section_text(std::string(key.name) + " = -7", key.name);
-    EXPECT_THROW(parse_scene(bad, "keys.toml"), SceneError) << key.name << " = -7";
+    try {
+      parse_scene(std::string(one_grain) + section_text(name + " = -7", key.name), "keys.toml");
+      failures.append("\n  ").append(name).append(" = -7: accepted");
+    } catch (const SceneError&) {
+    }
   }
+  if (checked == 0) return testing::AssertionFailure() << "no key of the table is read through an option";
+  if (!failures.empty()) return testing::AssertionFailure() << failures;
+  return testing::AssertionSuccess();
 }
 
 /// "[section]\nLINE\n" plus a contact law (the scene needs one).
@@ -363,18 +377,18 @@ std::function<std::string(const std::string&, std::string_view)> settings_sectio
 }
 
 TEST(SceneKeys, EverySolverKeyIsReadWrittenAndChecked) {
-  expect_keys_read_and_written<SolverOptions>(scene_detail::solver_keys(), settings_section("solver"),
-                                              [](const Scene& s) { return s.run.step.solver; });
+  EXPECT_TRUE(keys_read_and_written<SolverOptions>(scene_detail::solver_keys(), settings_section("solver"),
+                                                   [](const Scene& s) { return s.run.step.solver; }));
 }
 
 TEST(SceneKeys, EveryDetectionKeyIsReadWrittenAndChecked) {
-  expect_keys_read_and_written<DetectionOptions>(scene_detail::detection_keys(), settings_section("detection"),
-                                                 [](const Scene& s) { return s.run.step.detection; });
+  EXPECT_TRUE(keys_read_and_written<DetectionOptions>(scene_detail::detection_keys(), settings_section("detection"),
+                                                      [](const Scene& s) { return s.run.step.detection; }));
 }
 
 TEST(SceneKeys, EveryOutputKeyIsReadWrittenAndChecked) {
-  expect_keys_read_and_written<OutputOptions>(scene_detail::output_keys(), settings_section("output"),
-                                              [](const Scene& s) { return s.run.output; });
+  EXPECT_TRUE(keys_read_and_written<OutputOptions>(scene_detail::output_keys(), settings_section("output"),
+                                                   [](const Scene& s) { return s.run.output; }));
 }
 
 TEST(SceneKeys, EveryContactLawKeyIsReadWrittenAndChecked) {
@@ -382,16 +396,16 @@ TEST(SceneKeys, EveryContactLawKeyIsReadWrittenAndChecked) {
     return "[[contact_laws]]\nmaterials = [\"rock\", \"rock\"]\n" +
            std::string(key == "friction" ? "" : "friction = 0.5\n") + line + "\n";
   };
-  expect_keys_read_and_written<ContactLaw>(scene_detail::contact_law_keys(), law_section,
-                                           [](const Scene& s) { return s.model.contact_laws.get(0, 0); });
+  EXPECT_TRUE(keys_read_and_written<ContactLaw>(scene_detail::contact_law_keys(), law_section,
+                                                [](const Scene& s) { return s.model.contact_laws.get(0, 0); }));
 }
 
 TEST(SceneKeys, EveryTreeGravityKeyIsReadWrittenAndChecked) {
   const auto tree = [](const std::string& line, std::string_view) {
     return "[gravity]\ntype = \"tree\"\n" + line + "\n[default_contact_law]\nfriction = 0.5\n";
   };
-  expect_keys_read_and_written<GravitySettings>(scene_detail::gravity_keys("tree"), tree,
-                                                [](const Scene& s) { return s.run.step.gravity; });
+  EXPECT_TRUE(keys_read_and_written<GravitySettings>(scene_detail::gravity_keys("tree"), tree,
+                                                     [](const Scene& s) { return s.run.step.gravity; }));
 }
 
 }  // namespace
