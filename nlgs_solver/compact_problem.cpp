@@ -147,12 +147,7 @@ void warm_start_rotations(CompactProblem& compact) {
     CompactProblem::Rotation& r = compact.rotation[index];
     const CompactProblem::Point& c = compact.points[p];
     r.impulse = CompactProblem::project_onto_rotation_bounds(r.impulse, r, std::max(c.impulse.x(), 0.0));
-    if (r.impulse == Vec3::Zero()) continue;
-    const Vec3 world = c.frame * r.impulse;  // on b; -world on a
-    CompactProblem::Body& b = compact.bodies[c.b];
-    CompactProblem::Body& a = compact.bodies[c.a];
-    if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * world;
-    if (a.inverse_mass != 0.0) a.angular -= a.inverse_inertia * world;
+    if (r.impulse != Vec3::Zero()) compact.apply_angular_impulse_change(p, c.frame * r.impulse);
   }
 }
 

@@ -154,9 +154,15 @@ struct CompactProblem {
     const double scale = r.compliance * r.radius;
     sums.residual_squared += (scale * (r.impulse - next)).squaredNorm();
     sums.impulse_squared += (scale * next).squaredNorm();
-    const Point& c = points[k];
-    const Vec3 change = c.frame * (next - r.impulse);  // world angular impulse on b; -change on a
+    const Vec3 change = points[k].frame * (next - r.impulse);
     r.impulse = next;
+    apply_angular_impulse_change(k, change);
+  }
+
+  /// Applies the world angular impulse `change` of point k's rotation block to its two bodies
+  /// (+change on b, -change on a; walls are never written).
+  void apply_angular_impulse_change(std::size_t k, const Vec3& change) {
+    const Point& c = points[k];
     Body& b = bodies[c.b];
     Body& a = bodies[c.a];
     if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * change;
