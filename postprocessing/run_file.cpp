@@ -119,6 +119,9 @@ struct RunFile::Impl {
   std::int64_t rows = 0;
   std::int64_t snapshots = 0;
   std::size_t body_count = 0;  // of the model: every snapshot has this many bodies
+  // Whether a contact law resists rolling or twisting: only then do snapshots carry the contacts'
+  // angular impulses (contact_angular_impulse), so a plain run's file stays as it was.
+  bool angular_impulses = false;
   // A write or flush failed (disk full, I/O error): the file is not flushed again on close, and
   // later writes are refused, so that HDF5 is not asked to retry what cannot succeed.
   bool failed = false;
@@ -209,6 +212,7 @@ RunFile RunFile::create(const fs::path& path, const Model& model, std::string_vi
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->body_count = model.body_count();
+  impl->angular_impulses = model.contact_laws.any_resists_rotation();
   impl->file = hdf5::create_file(path, hdf5::ChunkIndex::small);
   const hid_t root = impl->file.get();
 
@@ -273,6 +277,7 @@ RunFile RunFile::reopen(const fs::path& path, std::int64_t last_step, std::span<
   }
   Handle model = hdf5::open_group(root, "model", path);
   impl->body_count = static_cast<std::size_t>(hdf5::read_double_attribute(model.get(), "body_count", path));
+  impl->angular_impulses = run_file_detail::laws_resist_rotation(model.get(), path);
 
   // Steps are appended in increasing order: keep the leading rows up to last_step.
   impl->series_group = hdf5::open_group(root, "series", path);
@@ -420,7 +425,7 @@ void RunFile::write_snapshot_now(const State& state, const ContactList& contacts
                                 std::to_string(f.body_count));
   }
   run_file_detail::write_state(g, state, f.path);
-  run_file_detail::write_contacts(g, contacts, f.path);
+  run_file_detail::write_contacts(g, contacts, f.angular_impulses, f.path);
   f.snapshot_time_column->append(&state.time, 1, f.path);
   f.snapshot_step_column->append(&state.step, 1, f.path);
   f.snapshot_times.push_back(state.time);

@@ -1,5 +1,6 @@
 #include "postprocessing/run_file_datasets.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -197,7 +198,7 @@ void write_state(hid_t group, const State& state, const fs::path& file) {
   write_vec3s(group, "angular_velocity", state.angular_velocity, "rad/s", file);
 }
 
-void write_contacts(hid_t group, const ContactList& contacts, const fs::path& file) {
+void write_contacts(hid_t group, const ContactList& contacts, bool angular_impulses, const fs::path& file) {
   // Field by field, so that one field's copy (at most 24 bytes a contact) exists at a time: all
   // nine at once were ~140 bytes a contact beside the run's own arrays, the run's peak memory at
   // the last snapshot of a 1e5-sphere run.
@@ -226,6 +227,9 @@ void write_contacts(hid_t group, const ContactList& contacts, const fs::path& fi
   write_vectors("contact_tangent_t", "1", [](const Contact& x) -> Vec3 { return x.frame.col(1); });
   write_vectors("contact_tangent_s", "1", [](const Contact& x) -> Vec3 { return x.frame.col(2); });
   write_vectors("contact_impulse", "N s", [](const Contact& x) -> Vec3 { return x.impulse; });
+  if (angular_impulses) {
+    write_vectors("contact_angular_impulse", "N m s", [](const Contact& x) -> Vec3 { return x.angular_impulse; });
+  }
   {
     std::vector<double> gap(c);
     for (std::size_t k = 0; k < c; ++k) gap[k] = contacts[k].gap;
@@ -234,6 +238,16 @@ void write_contacts(hid_t group, const ContactList& contacts, const fs::path& fi
   std::vector<std::int8_t> status(c);
   for (std::size_t k = 0; k < c; ++k) status[k] = static_cast<std::int8_t>(contacts[k].status);
   write_integers(hdf5::write_int8s, group, "contact_status", status, dims_c, file);
+}
+
+bool laws_resist_rotation(hid_t model, const fs::path& file) {
+  Handle laws = hdf5::open_group(model, "contact_laws", file);
+  for (const char* name : {"rolling_friction", "twisting_friction"}) {
+    if (!hdf5::exists(laws.get(), name)) continue;
+    const hdf5::Array<double> values = hdf5::read_doubles(laws.get(), name, file);
+    if (std::any_of(values.values.begin(), values.values.end(), [](double v) { return v > 0.0; })) return true;
+  }
+  return false;
 }
 
 }  // namespace rubble::run_file_detail

@@ -36,7 +36,12 @@ void write_model(hid_t file_id, const Model& model, const std::filesystem::path&
 /// snapshot group `group`.
 void write_state(hid_t group, const State& state, const std::filesystem::path& file);
 
-/// Writes the contact_* datasets of every contact point of the list into the snapshot group `group`.
-void write_contacts(hid_t group, const ContactList& contacts, const std::filesystem::path& file);
+/// Writes the contact_* datasets of every contact point of the list into the snapshot group `group`;
+/// contact_angular_impulse only when `angular_impulses` (a law of the model resists rotation).
+void write_contacts(hid_t group, const ContactList& contacts, bool angular_impulses, const std::filesystem::path& file);
+
+/// Whether a run file's /model/contact_laws (the group `model`) has a law with rolling or twisting
+/// resistance (false for a file written before those parameters were stored).
+bool laws_resist_rotation(hid_t model, const std::filesystem::path& file);
 
 }  // namespace rubble::run_file_detail

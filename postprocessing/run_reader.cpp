@@ -356,6 +356,10 @@ RunSnapshot RunReader::read_snapshot(std::size_t index) const {
   const std::vector<Vec3> impulse = read_vec3s(g, "contact_impulse", c, where);
   const std::vector<double> gap = read_column(g, "contact_gap", c, where);
   const std::vector<std::int64_t> status = read_int_column(g, "contact_status", c, where);
+  // Only in runs whose laws resist rotation (docs/output-format.md): zero otherwise.
+  const std::vector<Vec3> angular_impulse = hdf5::exists(g, "contact_angular_impulse")
+                                                ? read_vec3s(g, "contact_angular_impulse", c, where)
+                                                : std::vector<Vec3>(c, Vec3::Zero());
   snapshot.contacts.resize(c);
   for (std::size_t k = 0; k < c; ++k) {
     if (body_a[k] < 0 || body_b[k] < 0 || static_cast<std::size_t>(body_a[k]) >= n ||
@@ -374,6 +378,7 @@ RunSnapshot RunReader::read_snapshot(std::size_t index) const {
     contact.frame.col(2) = tangent_s[k];
     contact.gap = gap[k];
     contact.impulse = impulse[k];
+    contact.angular_impulse = angular_impulse[k];
     contact.status = static_cast<ContactStatus>(status[k]);
   }
   return snapshot;

@@ -34,7 +34,8 @@ struct RunSeries {
 };
 
 /// A snapshot read back: the state and the contact points (id.body_a/b, point, frame, gap,
-/// impulse, status filled; the solver's working fields left at their defaults; features 0).
+/// impulse, angular_impulse (zero unless a law resists rotation), status filled; the solver's
+/// working fields left at their defaults; features 0).
 struct RunSnapshot {
   State state;           ///< time, step, positions, orientations, velocities
   ContactList contacts;  ///< the contacts of the step that ended at that time

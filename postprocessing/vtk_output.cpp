@@ -133,7 +133,8 @@ void write_polyhedra(const Model& model, const State& state, const std::vector<i
 
 /// contacts_NNNNNN.vtp: the contact network, one line per contact point from grain centre to grain
 /// centre (to the contact point for a wall), with its impulses, and its mean forces impulse / h
-/// when the time step h is known (h > 0).
+/// when the time step h is known (h > 0); with rolling or twisting resistance in a law, also the
+/// angular impulse and its mean torque.
 void write_contacts(const Model& model, const State& state, const ContactList& contacts, double h,
                     const fs::path& path) {
   vtkNew<vtkPolyData> data;
@@ -145,6 +146,9 @@ void write_contacts(const Model& model, const State& state, const ContactList& c
   auto normal_force = scalar_array("normal_force"), tangential_force = scalar_array("tangential_force");
   auto force = vector_array("force"), normal = vector_array("normal"), point = vector_array("contact_point");
   auto gap = scalar_array("gap");
+  // Rolling and twisting resistance (world vectors on body b): only where a law has them.
+  const bool resisted_rotation = model.contact_laws.any_resists_rotation();
+  auto angular_impulse = vector_array("angular_impulse"), resisting_torque = vector_array("resisting_torque");
   for (const Contact& contact : contacts) {
     const std::size_t a = contact.id.body_a, b = contact.id.body_b;
     const Vec3 from = model.is_grain(a) ? state.position[a] : contact.point;
@@ -167,6 +171,12 @@ void write_contacts(const Model& model, const State& state, const ContactList& c
     normal->InsertNextTuple(n_world.data());
     point->InsertNextTuple(contact.point.data());
     gap->InsertNextValue(contact.gap);
+    if (resisted_rotation) {
+      const Vec3 world_angular = contact.frame * contact.angular_impulse;
+      const Vec3 mean_torque = h > 0.0 ? Vec3(world_angular / h) : Vec3::Zero();
+      angular_impulse->InsertNextTuple(world_angular.data());
+      resisting_torque->InsertNextTuple(mean_torque.data());
+    }
   }
   data->SetPoints(points);
   data->SetLines(lines);
@@ -178,6 +188,10 @@ void write_contacts(const Model& model, const State& state, const ContactList& c
     for (vtkDataArray* array : std::initializer_list<vtkDataArray*>{normal_force, tangential_force, force}) {
       data->GetCellData()->AddArray(array);
     }
+  }
+  if (resisted_rotation) {
+    data->GetCellData()->AddArray(angular_impulse);
+    if (h > 0.0) data->GetCellData()->AddArray(resisting_torque);
   }
   write_polydata(data, path);
 }

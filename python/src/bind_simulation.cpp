@@ -75,13 +75,14 @@ py::dict contacts_dict(const ContactList& contacts) {
   py::array_t<std::uint8_t> status(n);
   py::array_t<double> gap(n), friction(n), restitution(n);
   py::array_t<double> point({n, py::ssize_t{3}}), normal({n, py::ssize_t{3}}), impulse({n, py::ssize_t{3}}),
-      impulse_world({n, py::ssize_t{3}});
+      impulse_world({n, py::ssize_t{3}}), angular_impulse({n, py::ssize_t{3}});
   py::array_t<double> frame({n, py::ssize_t{3}, py::ssize_t{3}});
   auto fr = frame.mutable_unchecked<3>();
   auto pt = point.mutable_unchecked<2>();
   auto nm = normal.mutable_unchecked<2>();
   auto im = impulse.mutable_unchecked<2>();
   auto iw = impulse_world.mutable_unchecked<2>();
+  auto ai = angular_impulse.mutable_unchecked<2>();
   for (py::ssize_t k = 0; k < n; ++k) {
     const Contact& c = contacts[static_cast<std::size_t>(k)];
     body_a.mutable_at(k) = c.id.body_a;
@@ -98,6 +99,7 @@ py::dict contacts_dict(const ContactList& contacts) {
       nm(k, i) = c.frame(i, 0);
       im(k, i) = c.impulse[i];
       iw(k, i) = world[i];
+      ai(k, i) = c.angular_impulse[i];
       // Row j of frame[k] is the frame's column j: n, t, s.
       for (py::ssize_t j = 0; j < 3; ++j) fr(k, j, i) = c.frame(i, j);
     }
@@ -113,6 +115,7 @@ py::dict contacts_dict(const ContactList& contacts) {
   d["gap"] = gap;
   d["impulse"] = impulse;
   d["impulse_world"] = impulse_world;
+  d["angular_impulse"] = angular_impulse;
   d["status"] = status;
   d["friction"] = friction;
   d["restitution"] = restitution;
@@ -340,8 +343,9 @@ returning False stops the run. Returns {'steps', 'step', 'time', 'reached_rest',
           "contacts", [](const Simulation& s) { return contacts_dict(s.contacts()); },
           R"doc(The contact points of the last step, as arrays (a copy): body_a, body_b, feature_a, feature_b,
 point (n, 3) m, normal (n, 3) from a to b, frame (n, 3, 3) whose rows are n, t, s, gap (m, > 0
-apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 3), status
-(0 open, 1 sticking, 2 sliding), friction, restitution.)doc")
+apart), impulse (n, 3) on b in the frame (r_n, r_t, r_s) N s, impulse_world (n, 3),
+angular_impulse (n, 3) on b in the frame (m_n, m_t, m_s) N m s (rolling and twisting resistance; zero
+without), status (0 open, 1 sticking, 2 sliding), friction, restitution.)doc")
       .def_property_readonly(
           "last_step", [](const Simulation& s) { return report_dict(s.last_report()); },
           "what the last step did: contacts, iterations, residual, converged, stage_seconds")

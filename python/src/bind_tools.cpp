@@ -61,7 +61,8 @@ py::dict snapshot_dict(const RunSnapshot& snapshot) {
   const auto n = static_cast<py::ssize_t>(snapshot.contacts.size());
   py::array_t<std::uint32_t> a(n), b(n);
   py::array_t<std::uint8_t> status(n);
-  py::array_t<double> gap(n), point({n, py::ssize_t{3}}), normal({n, py::ssize_t{3}}), impulse({n, py::ssize_t{3}});
+  py::array_t<double> gap(n), point({n, py::ssize_t{3}}), normal({n, py::ssize_t{3}}), impulse({n, py::ssize_t{3}}),
+      angular_impulse({n, py::ssize_t{3}});
   for (py::ssize_t k = 0; k < n; ++k) {
     const Contact& c = snapshot.contacts[static_cast<std::size_t>(k)];
     a.mutable_at(k) = c.id.body_a;
@@ -72,6 +73,7 @@ py::dict snapshot_dict(const RunSnapshot& snapshot) {
       point.mutable_at(k, i) = c.point[i];
       normal.mutable_at(k, i) = c.frame(i, 0);
       impulse.mutable_at(k, i) = c.impulse[i];
+      angular_impulse.mutable_at(k, i) = c.angular_impulse[i];
     }
   }
   py::dict contacts;
@@ -81,6 +83,7 @@ py::dict snapshot_dict(const RunSnapshot& snapshot) {
   contacts["normal"] = normal;
   contacts["gap"] = gap;
   contacts["impulse"] = impulse;
+  contacts["angular_impulse"] = angular_impulse;
   contacts["status"] = status;
   d["contacts"] = contacts;
   return d;

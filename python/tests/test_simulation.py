@@ -80,6 +80,26 @@ def test_sphere_resting_on_a_plane_carries_its_weight():
     assert abs(sim.velocities[0, 2]) < 1e-9
 
 
+def test_rolling_sphere_carries_the_rolling_resistance_bound_in_its_angular_impulse():
+    # A sphere rolling on the floor with rolling friction mu_r: the resisting torque is at its bound
+    # mu_r r f_n (docs/scene-file.md), so over a step the contact's angular impulse has the norm
+    # mu_r r m g h, about an axis in the tangent plane (no twisting), against the rolling.
+    mu_r, radius, v0 = 0.1, 0.01, 0.05
+    sim = rubble.Simulation(one_sphere(radius=radius))
+    sim.set_contact_law("glass", "glass", rolling_friction=mu_r)
+    sim.step(50)  # settle onto the floor
+    sim.velocities = np.array([[v0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    sim.angular_velocities = np.array([[0.0, v0 / radius, 0.0], [0.0, 0.0, 0.0]])  # rolling in +x
+    sim.step(20)
+    c = sim.contacts()
+    m = c["angular_impulse"][0]  # on body b, in the frame (n, t, s)
+    bound = mu_r * radius * sim.masses[0] * G0 * sim.dt
+    assert np.linalg.norm(m) == pytest.approx(bound, rel=1e-6)
+    assert abs(m[0]) < 1e-9 * bound  # no twisting
+    on_sphere = (m if int(c["body_b"][0]) == 0 else -m) @ c["frame"][0]  # world vector on the sphere
+    assert on_sphere[1] < -0.999 * bound  # against the spin about +y
+
+
 def test_coulomb_sliding_decelerates_at_mu_g_and_friction_can_change_between_steps():
     mu, v0 = 0.4, 1.0
     sim = rubble.Simulation(one_sphere(friction=mu))

@@ -56,6 +56,7 @@ TEST(RunReader, ReadsBackWhatWasWritten) {
   contacts[0].frame = frame_from_normal(Vec3(0.0, 0.6, 0.8));
   contacts[0].gap = -2e-4;
   contacts[0].impulse = Vec3(1.5, -0.25, 0.125);
+  contacts[0].angular_impulse = Vec3(0.0625, -0.03125, 0.5);  // the model's laws resist rotation
   contacts[0].status = ContactStatus::sliding;
   const std::array<std::string_view, 2> stages{"detect", "solve"};
   {
@@ -135,8 +136,54 @@ TEST(RunReader, ReadsBackWhatWasWritten) {
   EXPECT_EQ(c.frame, contacts[0].frame);
   EXPECT_EQ(c.gap, contacts[0].gap);
   EXPECT_EQ(c.impulse, contacts[0].impulse);
+  EXPECT_EQ(c.angular_impulse, contacts[0].angular_impulse);
   EXPECT_EQ(c.status, ContactStatus::sliding);
   EXPECT_THROW(reader.read_snapshot(2), std::runtime_error);
+}
+
+/// A run file with one snapshot of one contact carrying `angular_impulse`, for `model`; then
+/// reopened (as a resumed run does) and a second snapshot of the same contact appended.
+RunReader written_and_resumed(const fs::path& path, const Model& model, const Vec3& angular_impulse) {
+  State state;
+  state.resize(model.body_count());
+  ContactList contacts(1);
+  contacts[0].id = {0, 3, 0, 0};
+  contacts[0].frame = frame_from_normal(Vec3(0.0, 0.0, 1.0));
+  contacts[0].impulse = Vec3(1.0, 0.0, 0.0);
+  contacts[0].angular_impulse = angular_impulse;
+  const std::array<std::string_view, 1> stages{"solve"};
+  {
+    RunFile file = RunFile::create(path, model, "", stages);
+    const std::array<double, 1> stage_seconds{0.0};
+    SeriesRow row;
+    row.step = 1;
+    row.stage_seconds = stage_seconds;
+    file.append_series(row);
+    file.write_snapshot(state, contacts);
+  }
+  {
+    RunFile file = RunFile::reopen(path, 1, stages);
+    state.step = 2;
+    file.write_snapshot(state, contacts);
+  }
+  return RunReader::open(path);
+}
+
+// The rolling and twisting resistance's angular impulses are in the snapshots of a run whose laws
+// resist rotation (written when the file is created and after a resume), and absent from a plain
+// run's file (read back as zero: the solver never sets them there, and the file stays as it was).
+TEST(RunReader, AngularImpulsesComeBackOnlyWhereALawResistsRotation) {
+  const Vec3 held(0.0, -0.25, 0.125);
+  const Model rolling = make_model();  // law (0, 1) has rolling and twisting friction
+  const RunReader with = written_and_resumed(scratch_dir() / "rolling.h5", rolling, held);
+  ASSERT_EQ(with.snapshot_count(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(with.read_snapshot(k).contacts.at(0).angular_impulse, held) << k;
+
+  Model plain = make_model();
+  plain.contact_laws.set(0, 1, ContactLaw{0.5, 0.0});
+  const RunReader without = written_and_resumed(scratch_dir() / "plain.h5", plain, held);
+  ASSERT_EQ(without.snapshot_count(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(without.read_snapshot(k).contacts.at(0).angular_impulse, Vec3::Zero());
 }
 
 TEST(RunReader, RefusesWhatIsNotARunFile) {

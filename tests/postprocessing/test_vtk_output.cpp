@@ -216,6 +216,41 @@ TEST(VtkSeries, ReadBackWithVtkMatchesTheState) {
   }
 }
 
+// With rolling resistance in the law, the contact network also carries each point's angular impulse
+// as a world vector on body b (frame times (m_n, m_t, m_s)) and its mean torque over h; without it,
+// neither array is written (a plain run's files stay as they were).
+TEST(VtkSeries, ContactsCarryTheResistingTorqueWhenALawResistsRotation) {
+  const double h = 0.01;
+  for (const double rolling_friction : {0.0, 0.05}) {
+    const fs::path dir = fs::path(::testing::TempDir()) / "rubble_test_vtk_rolling";
+    fs::remove_all(dir);
+    Scene s = make_scene();
+    ContactLaw law;
+    law.rolling_friction = rolling_friction;
+    s.model.contact_laws.reset(1, law);
+    s.contacts[0].angular_impulse = Vec3(0.001, -0.002, 0.0005);
+    {
+      VtkSeries series(dir, s.model, VtkSeriesOptions{h, 0.0, {}});
+      series.write(s.state, s.contacts);
+    }
+    const vtkSmartPointer<vtkPolyData> network = read(dir / "contacts_000000.vtp");
+    vtkCellData* cells = network->GetCellData();
+    if (rolling_friction == 0.0) {
+      EXPECT_EQ(cells->GetArray("angular_impulse"), nullptr);
+      EXPECT_EQ(cells->GetArray("resisting_torque"), nullptr);
+      continue;
+    }
+    ASSERT_NE(cells->GetArray("angular_impulse"), nullptr);
+    ASSERT_NE(cells->GetArray("resisting_torque"), nullptr);
+    const Contact& c = s.contacts[0];
+    const Vec3 world = c.angular_impulse.x() * c.frame.col(0) + c.angular_impulse.y() * c.frame.col(1) +
+                       c.angular_impulse.z() * c.frame.col(2);
+    EXPECT_NEAR((tuple3(cells->GetArray("angular_impulse"), 0) - world).norm(), 0.0, 1e-15);
+    EXPECT_NEAR((tuple3(cells->GetArray("resisting_torque"), 0) - world / h).norm(), 0.0, 1e-13);
+    EXPECT_EQ(tuple3(cells->GetArray("angular_impulse"), 1), Vec3::Zero());
+  }
+}
+
 TEST(VtkSeries, UnwritableFolderThrowsWithThePath) {
   const Scene s = make_scene();
   EXPECT_THROW(VtkSeries("/proc/rubble-cannot-be-here", s.model), std::runtime_error);
