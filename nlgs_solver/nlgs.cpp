@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -164,6 +165,12 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
   stats.residual = scale_squared > 0.0 ? std::sqrt(residual_squared / scale_squared) : std::sqrt(residual_squared);
 }
 
+/// Whether the polish knows the scene's laws: Signorini-Coulomb-Newton, with or without cohesion
+/// (no rolling or twisting resistance, no tangential restitution).
+bool may_polish_laws(const Model& model) {
+  return !model.contact_laws.any_resists_rotation() && !model.contact_laws.any_tangential_restitution();
+}
+
 }  // namespace
 
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
@@ -171,8 +178,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   // No polish with rolling or twisting resistance or tangential restitution: the polish knows the
   // Signorini-Coulomb-Newton law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
-                          options.polish_attempts_per_step > 0 && !model.contact_laws.any_resists_rotation() &&
-                          !model.contact_laws.any_tangential_restitution();
+                          options.polish_attempts_per_step > 0 && may_polish_laws(model);
   const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
   // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
   // costs a futex round trip per sweep).
@@ -182,6 +188,14 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   CompactProblem compact = gather_compact_problem(model, state, plan, contacts, velocity, parallel);
   const ResidualScale scale = residual_scale(compact, plan, parallel);
   const bool cohesive = model.contact_laws.any_cohesive();
+  if (options.problem_observer) {
+    if (cohesive || !may_polish_laws(model)) {
+      throw std::invalid_argument(
+          "problem_observer: the contact problem is written for plain Signorini-Coulomb-Newton laws only (this "
+          "scene has cohesion, rolling or twisting resistance or tangential restitution)");
+    }
+    options.problem_observer(explicit_contact_problem(compact, plan.order));
+  }
   apply_warm_start(plan, contacts, cohesive, parallel, compact);
   warm_start_rotations(compact);
 

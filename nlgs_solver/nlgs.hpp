@@ -5,6 +5,7 @@
 // velocities are updated at once, so no global matrix is assembled.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "core/contact.hpp"
@@ -14,6 +15,8 @@
 #include "nlgs_solver/overlap_recovery.hpp"
 
 namespace rubble {
+
+struct LocalProblem;  // local_problem.hpp (which includes this header)
 
 /// Settings of the NLGS solver.
 struct SolverOptions {
@@ -42,6 +45,12 @@ struct SolverOptions {
   /// depend on it but never on the number of threads. 1 = one block (a plain sequential sweep in
   /// Morton order).
   int block_count = 16;
+  /// When set, called with each step's contact problem (explicit W, q, mu; polish.hpp,
+  /// explicit_contact_problem) before the sweeps: to write it as an FCLib file that other solvers
+  /// replay (bench_matched_accuracy --write-fclib, bench_siconos). Plain Signorini-Coulomb-Newton
+  /// laws only: solve_contacts throws std::invalid_argument for a scene with cohesion, rolling or
+  /// twisting resistance or tangential restitution. Empty (the default) costs one test a step.
+  std::function<void(const LocalProblem&)> problem_observer;
 };
 
 /// What one solve did, for the step's report.

@@ -26,7 +26,7 @@ struct ScaledProblem {
 /// The polish's view of the compact problem: its unknown k is contact k of the ContactList, that
 /// is point `point[k]` of the copy.
 struct PolishView {
-  CompactProblem& compact;
+  const CompactProblem& compact;
   std::vector<std::size_t> point;  ///< the inverse of the plan's order
   /// Contact k's point.
   const CompactProblem::Point& at(std::size_t k) const { return compact.points[point[k]]; }
@@ -71,12 +71,13 @@ std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
   return merged;
 }
 
-/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller.
-ScaledProblem assemble_scaled_problem(const PolishView& view) {
+/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller. With `scaled`
+/// false, W itself (every d_l taken as 1): the symmetric Delassus operator in impulses.
+ScaledProblem assemble_scaled_problem(const PolishView& view, bool scaled = true) {
   const std::size_t n = view.point.size();
   ScaledProblem out;
   out.normal_compliance.resize(n);
-  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = view.at(k).delassus(0, 0);
+  for (std::size_t k = 0; k < n; ++k) out.normal_compliance[k] = scaled ? view.at(k).delassus(0, 0) : 1.0;
   // Contacts of each moving body.
   std::vector<std::vector<std::size_t>> of_body(view.compact.bodies.size());
   for (std::size_t k = 0; k < n; ++k) {
@@ -117,6 +118,18 @@ std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<dou
 }
 
 }  // namespace
+
+LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<const std::size_t> order) {
+  PolishView view{compact, std::vector<std::size_t>(order.size())};
+  for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
+  LocalProblem problem = assemble_scaled_problem(view, false).problem;
+  problem.q.resize(3 * view.point.size());
+  for (std::size_t k = 0; k < view.point.size(); ++k) {
+    const Vec3 u = compact.local_velocity(view.point[k]);  // the free velocities: no impulse applied yet
+    for (int i = 0; i < 3; ++i) problem.q[3 * k + static_cast<std::size_t>(i)] = u[i];
+  }
+  return problem;
+}
 
 PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
                                      double tolerance) {

@@ -7,6 +7,7 @@
 #include <span>
 
 #include "nlgs_solver/compact_problem.hpp"
+#include "nlgs_solver/local_problem.hpp"
 
 namespace rubble {
 
@@ -26,5 +27,12 @@ struct PolishOutcome {
 /// the bit).
 PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
                                      double tolerance);
+
+/// The contact problem of a compact copy whose velocities are still the free velocities (no
+/// impulse applied) as explicit data: u = W r + q with W the Delassus operator in impulses (N s,
+/// symmetric), q the points' local velocities without impulse (m/s, the normal target velocity
+/// folded in), mu; unknown k is contact k of the ContactList (`order` as for the polish). Plain
+/// Signorini-Coulomb-Newton laws only (the caller checks). For SolverOptions::problem_observer.
+LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<const std::size_t> order);
 
 }  // namespace rubble

@@ -20,6 +20,7 @@ packages=(
   libfmt-dev         # formatting (g++ 12 has no std::format)
   # tests and benchmarks
   libgtest-dev libgmock-dev googletest libbenchmark-dev
+  libsiconos-numerics-dev   # the reference FCLib solver (Siconos NSGS) for bench_siconos
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes
   clang-format clang-tidy   # the code style (.clang-format) and static checks (.clang-tidy)
   # post-processing and output checks in tests

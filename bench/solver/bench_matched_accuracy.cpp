@@ -19,6 +19,10 @@
 // its contacts differently, while every grain's net impulse, set by its velocity, is the same.
 // Usage: bench_matched_accuracy CHECKPOINT.ckpt [--tolerances 1e-2,1e-3,1e-4] [--steps 5]
 //        [--max-iterations N] [--reference-tolerance 1e-8] [--reference-sweeps 50000] [--reference-polish]
+//        bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
+// The second form writes the contact problem of the checkpoint's next step (W, q, mu) as an FCLib
+// local problem and stops: the step's problem replayed by `rubble fclib`, bench_fclib and
+// bench_siconos (bench/solver/README.md).
 #include <time.h>
 
 #include <CLI/CLI.hpp>
@@ -30,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "nlgs_solver/fclib_file.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/scene_file.hpp"
 #include "simulation/step.hpp"
@@ -132,6 +137,22 @@ nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const 
           {"reference_sweeps_max", reference_sweeps}};
 }
 
+/// Steps once from the checkpoint with the scene's settings and writes that step's contact problem
+/// to `file`; returns the number of contacts written.
+std::size_t write_step_problem(const Model& model, const Checkpoint& start, StepOptions options,
+                               const std::string& file, const std::string& title) {
+  State state = start.state;
+  StepWorkspace workspace;
+  workspace.carry = start.carry;
+  std::size_t contacts = 0;
+  options.solver.problem_observer = [&](const LocalProblem& problem) {
+    write_fclib_local(file, problem, SparseStorage::compressed_row, title);
+    contacts = problem.contact_count();
+  };
+  step(model, state, workspace, options);
+  return contacts;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -151,10 +172,20 @@ int main(int argc, char** argv) {
   app.add_option("--max-iterations", max_iterations, "sweeps at most in the candidates' solves (default: the scene's)");
   app.add_flag("--reference-polish", reference_polish,
                "let the tight solve use the Newton polish whatever its size (nlgs.hpp polish_max_contacts)");
+  std::string fclib_file;
+  app.add_option("--write-fclib", fclib_file,
+                 "write the next step's contact problem as an FCLib local problem to this file and stop");
   CLI11_PARSE(app, argc, argv);
   try {
     const Checkpoint start = read_checkpoint(checkpoint_file);
     const Scene scene = parse_scene(start.scene_text, start.scene_source);
+    if (!fclib_file.empty()) {
+      const std::string title =
+          "rubble: the contact problem of step " + std::to_string(start.state.step + 1) + " after " + checkpoint_file;
+      const std::size_t contacts = write_step_problem(scene.model, start, scene.run.step, fclib_file, title);
+      std::cout << fclib_file << ": " << contacts << " contacts\n";
+      return 0;
+    }
     SolverOptions reference = scene.run.step.solver;
     reference.tolerance = reference_tolerance;
     reference.max_iterations = reference_sweeps;
