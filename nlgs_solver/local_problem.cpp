@@ -142,16 +142,61 @@ double alart_curnier(const LocalProblem& p, const std::vector<double>& rho, cons
 
 /// What one polish attempt did.
 struct PolishResult {
-  int iterations = 0;     ///< Newton steps taken
-  bool improved = false;  ///< r holds a better iterate (lower FCLib error) than on entry
+  int iterations = 0;      ///< Newton steps taken
+  bool improved = false;   ///< r holds a better iterate (lower FCLib error) than on entry
+  double step_work = 0.0;  ///< cost of the first step (newton_step_work), 0 if none was taken
 };
+
+/// The cost of a polish attempt against that of the sweeps it would save, in the units of
+/// newton_step_work and sweep_work: an attempt is taken to need 10 Newton steps (those that
+/// converge on the FCLib problems and rubble's own steps take 2-30; bench/RESULTS.md, "rubble
+/// against Siconos NSGS"), and a unit of Newton work to cost 3 of a sweep's (the sparse product and
+/// the ordering run slower per multiply-add than the sweep's dense 3x3 rows: measured 1-5x).
+constexpr double expected_newton_steps = 10.0;
+constexpr double newton_unit_cost = 3.0;
+
+/// Whether a polish attempt is worth its cost: `step_work` a Newton step's, `sweeps_work` that of the
+/// sweeps still needed (infinite when they stall).
+bool polish_pays(double step_work, double sweeps_work) {
+  return expected_newton_steps * newton_unit_cost * step_work <= sweeps_work;
+}
+
+/// Eigen's sparse LDL^T, with the column counts of its factor readable after the symbolic analysis
+/// (they are computed there, before any numeric work).
+class CountedLDLT : public Eigen::SimplicialLDLT<SparseColumnMajor> {
+ public:
+  /// Sum over the factor's columns of their squared lengths: the factorisation's multiply-adds
+  /// (George & Liu 1981). Valid after analyzePattern().
+  double factorisation_work() const {
+    double work = 0.0;
+    for (Eigen::Index j = 0; j < m_nonZerosPerCol.size(); ++j) {
+      const auto count = static_cast<double>(m_nonZerosPerCol[j]);
+      work += count * count;
+    }
+    return work;
+  }
+};
+
+/// Multiply-adds of one Levenberg-Marquardt step, counted from the matrices (so a decision taken on
+/// it is the same on every run): forming J^T J (each of its entries a dot product of two columns of
+/// J, about nnz(J)/m terms) and its factorisation.
+double newton_step_work(const SparseColumnMajor& J, const SparseColumnMajor& normal_matrix,
+                        const CountedLDLT& factorization) {
+  return static_cast<double>(normal_matrix.nonZeros()) * static_cast<double>(J.nonZeros()) /
+             static_cast<double>(std::max<Eigen::Index>(J.cols(), 1)) +
+         factorization.factorisation_work();
+}
 
 /// One damped Gauss-Newton (Levenberg-Marquardt) step on the Alart-Curnier function at r:
 /// (J^T J + lambda I) d = -J^T F with lambda = damping x mean diagonal of J^T J. Returns false
 /// when the factorization fails or d is not a descent direction of psi = |F|^2 / 2.
+/// `sweeps_work`: the sweeps' cost this step is weighed against (polish_pays, with its work written
+/// to `work` after the symbolic analysis); a step that does not pay is not factorised (returns
+/// false, `work` set).
 bool levenberg_marquardt_step(const LocalProblem& p, const std::vector<double>& rho, const std::vector<double>& r,
                               const std::vector<double>& u, double damping, Eigen::VectorXd& step, double& psi,
-                              double& slope) {
+                              double& slope, double sweeps_work = std::numeric_limits<double>::infinity(),
+                              double* work = nullptr) {
   const auto m = static_cast<Eigen::Index>(3 * p.contact_count());
   std::vector<double> F;
   std::vector<Eigen::Triplet<double>> triplets;
@@ -163,7 +208,12 @@ bool levenberg_marquardt_step(const LocalProblem& p, const std::vector<double>& 
   const double lambda = damping * normal_matrix.diagonal().sum() / static_cast<double>(m);
   for (Eigen::Index d = 0; d < m; ++d) normal_matrix.coeffRef(d, d) += lambda;
   // The pattern of J follows the contacts' regimes, so the symbolic analysis is redone each step.
-  Eigen::SimplicialLDLT<SparseColumnMajor> factorization(normal_matrix);
+  CountedLDLT factorization;
+  factorization.analyzePattern(normal_matrix);
+  const double step_work = newton_step_work(J, normal_matrix, factorization);
+  if (work != nullptr) *work = step_work;
+  if (!polish_pays(step_work, sweeps_work)) return false;
+  factorization.factorize(normal_matrix);
   if (factorization.info() != Eigen::Success) return false;
   step = factorization.solve(-gradient);
   slope = gradient.dot(step);
@@ -180,7 +230,8 @@ bool levenberg_marquardt_step(const LocalProblem& p, const std::vector<double>& 
 /// (Chamberlain et al. 1982's watchdog); then the walk restarts from the best iterate with an
 /// Armijo backtracking step and ten times the damping. Keeps the iterate of lowest FCLib error.
 PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& options, std::vector<double>& r,
-                           std::vector<double>& u, double& error) {
+                           std::vector<double>& u, double& error,
+                           double sweeps_work = std::numeric_limits<double>::infinity()) {
   constexpr int watchdog = 4;
   PolishResult result;
   const std::size_t m = 3 * p.contact_count();
@@ -194,8 +245,14 @@ PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& opt
   double damping = options.polish_initial_damping;
   Eigen::VectorXd step;
   for (int it = 0; it < options.polish_iterations && best_error > options.tolerance; ++it) {
-    double psi = 0.0, slope = 0.0;
-    if (!levenberg_marquardt_step(p, rho, r, u, damping, step, psi, slope)) break;
+    double psi = 0.0, slope = 0.0, work = 0.0;
+    // The first step's symbolic analysis tells what a Newton step costs here: when the attempt's
+    // expected steps cost more than the sweeps still needed, the attempt ends before factorising.
+    const bool stepped =
+        levenberg_marquardt_step(p, rho, r, u, damping, step, psi, slope,
+                                 it == 0 ? sweeps_work : std::numeric_limits<double>::infinity(), &work);
+    if (it == 0) result.step_work = work;
+    if (!stepped) break;
     if (psi < anchor_psi) {
       anchor_psi = psi;
       anchor_r = r;
@@ -271,6 +328,50 @@ double fclib_error(const LocalProblem& problem, const std::vector<double>& r, co
   return std::sqrt(f2) / (q_norm > 0.0 ? q_norm : 1.0);
 }
 
+namespace {
+
+/// When the sweeps' FCLib error is computed. It costs a product u = W r + q, as much as the sweep
+/// itself, so once the error falls at a steady rate it is computed only where that rate says it
+/// may have met the tolerance (NLGS converges linearly once the contacts' statuses settle: the
+/// error falls by a constant factor a sweep), and at least every 16 sweeps, so that a slowing rate
+/// costs at most 16 sweeps of overshoot.
+struct ErrorChecks {
+  std::vector<int> sweep;     ///< sweeps after which the error was computed
+  std::vector<double> error;  ///< the errors then
+  int next = 1;               ///< the next sweep to compute it after
+
+  /// Whether the error is to be computed after sweep `k` (always after the last one).
+  bool due(int k, int last) const { return k >= next || k == last; }
+
+  /// The error after sweep `k`; sets the next check.
+  void record(int k, double value, double tolerance) {
+    sweep.push_back(k);
+    error.push_back(value);
+    const double left = sweeps_left(tolerance);
+    // Every sweep while the rate is unknown or the tolerance is near; else 90 % of the way there.
+    const int skip = std::isfinite(left) && left > 2.0 ? static_cast<int>(0.9 * left) : 1;
+    next = k + std::clamp(skip, 1, 16);
+  }
+
+  /// Sweeps still needed at the rate of the last ten or more sweeps; infinite when the error does
+  /// not fall (a stalled sweep) or too few errors are known.
+  double sweeps_left(double tolerance) const {
+    if (sweep.size() < 2) return std::numeric_limits<double>::infinity();
+    std::size_t first = sweep.size() - 2;
+    while (first > 0 && sweep.back() - sweep[first] < 10) --first;
+    const double now = error.back(), before = error[first];
+    const double rate = std::pow(now / before, 1.0 / static_cast<double>(sweep.back() - sweep[first]));
+    if (!(rate < 1.0) || !(now > 0.0)) return std::numeric_limits<double>::infinity();
+    return std::max(0.0, std::log(tolerance / now) / std::log(rate));
+  }
+};
+
+/// Multiply-adds of one sweep: the rows of W once (the local velocities; the error's product
+/// u = W r + q is computed only now and then, ErrorChecks).
+double sweep_work(const LocalProblem& problem) { return static_cast<double>(problem.W.value.size()); }
+
+}  // namespace
+
 LocalProblemSolution solve_local_problem(const LocalProblem& problem, const LocalProblemOptions& options) {
   const std::size_t n = problem.contact_count();
   if (problem.W.rows != static_cast<int>(3 * n) || problem.q.size() != 3 * n ||
@@ -302,18 +403,32 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
       for (int i = 0; i < 3; ++i) solution.r[3 * k + static_cast<std::size_t>(i)] = explicit_problem.r[k][i];
   };
   int next_polish = std::max(options.polish_after, 1);
+  ErrorChecks checks;
+  double newton_work = 0.0;  // a Newton step's (newton_step_work), once an attempt has measured it
   for (solution.iterations = 1; solution.iterations <= options.max_iterations; ++solution.iterations) {
     nlgs_sweep(explicit_problem, order, options.relaxation);
+    const bool polish_due = options.polish == PolishMethod::newton && solution.iterations == next_polish;
+    if (!checks.due(solution.iterations, options.max_iterations) && !polish_due) continue;
     flatten();
     solution.u = velocities(problem, solution.r);
     solution.error = fclib_error(problem, solution.r, solution.u);
+    checks.record(solution.iterations, solution.error, options.tolerance);
     if (solution.error <= options.tolerance) {
       solution.converged = true;
       break;
     }
-    if (options.polish == PolishMethod::newton && solution.iterations == next_polish) {
+    if (polish_due) {
+      next_polish *= 2;
+      // Sweeps that cannot reach the tolerance within max_iterations cost "infinitely" much:
+      // then only Newton can solve the problem, whatever its cost.
+      const double left = checks.sweeps_left(options.tolerance);
+      const double sweeps_work = left <= options.max_iterations - solution.iterations
+                                     ? left * sweep_work(problem)
+                                     : std::numeric_limits<double>::infinity();
+      if (newton_work > 0.0 && !polish_pays(newton_work, sweeps_work)) continue;
       ++solution.polish_attempts;
-      const PolishResult polish = newton_polish(problem, options, solution.r, solution.u, solution.error);
+      const PolishResult polish = newton_polish(problem, options, solution.r, solution.u, solution.error, sweeps_work);
+      newton_work = std::max(newton_work, polish.step_work);
       solution.newton_iterations += polish.iterations;
       if (solution.error <= options.tolerance) {
         solution.converged = true;
@@ -323,7 +438,6 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
         for (std::size_t k = 0; k < n; ++k)
           explicit_problem.r[k] = Vec3(solution.r[3 * k], solution.r[3 * k + 1], solution.r[3 * k + 2]);
       }
-      next_polish *= 2;
     }
   }
   solution.iterations = std::min(solution.iterations, options.max_iterations);

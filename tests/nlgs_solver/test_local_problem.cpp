@@ -102,19 +102,23 @@ TEST(LocalProblem, AlartCurnierFunctionVanishesExactlyAtTheSolution) {
   EXPECT_GT(at_zero, 1e-3);
 }
 
+// The sweeps alone do not reach 1e-10 within 60 sweeps on these problems (they need 92-169, or
+// stall); the polish, which is then the only way to the tolerance within the budget, must get
+// there. (Where the sweeps would get there in time, the polish is taken only if its Newton steps
+// cost less than the sweeps left: solve_local_problem, polish_pays.)
 TEST(LocalProblem, NewtonPolishSolvesRankDeficientProblemsWhereSweepsStall) {
   for (std::uint64_t seed = 1; seed <= 4; ++seed) {
     const LocalProblem p = rank_deficient_problem(10, 18, seed);
     LocalProblemOptions options;
     options.tolerance = 1e-10;
-    options.max_iterations = 200;
+    options.max_iterations = 60;
     const LocalProblemSolution plain = solve_local_problem(p, options);
+    EXPECT_FALSE(plain.converged) << "seed " << seed << ": the sweeps alone got there";
     options.polish = PolishMethod::newton;
     const LocalProblemSolution polished = solve_local_problem(p, options);
     EXPECT_TRUE(polished.converged) << "seed " << seed << " error " << polished.error;
     EXPECT_LE(fclib_error(p, polished.r, polished.u), 1e-10);
-    EXPECT_GT(polished.newton_iterations, 0);
-    EXPECT_LE(polished.iterations, plain.iterations) << "seed " << seed;
+    EXPECT_GT(polished.newton_iterations, 0) << "seed " << seed;
   }
 }
 
