@@ -161,7 +161,7 @@ constexpr double newton_unit_cost = 3.0;
 constexpr double affordable_polish_work = 1e9;
 
 /// Whether a polish attempt is worth its cost: `step_work` a Newton step's, `sweeps_work` that of the
-/// sweeps still needed (infinite when they stall).
+/// sweeps still needed (or what an attempt may cost where the sweeps cannot get there).
 bool polish_pays(double step_work, double sweeps_work) {
   return expected_newton_steps * newton_unit_cost * step_work <= sweeps_work;
 }

@@ -46,9 +46,9 @@ struct LocalProblemOptions {
   SweepOrder order = SweepOrder::as_stored;  ///< contact order within a sweep
   std::uint64_t seed = 1;                    ///< for SweepOrder::shuffled (one shuffle, reused every sweep)
   PolishMethod polish = PolishMethod::none;  ///< none keeps the plain NLGS
-  /// Sweeps before the first polish attempt; if it does not reach the tolerance, sweeping resumes
-  /// and the next attempt comes after twice as many sweeps (so a failing polish costs at most
-  /// about as much as the sweeps themselves).
+  /// Sweeps before the first polish attempt; if it does not reach the tolerance (or is not worth
+  /// its cost: nlgs_solver/README.md), sweeping resumes and the next attempt comes after twice as
+  /// many sweeps (so a failing polish costs at most about as much as the sweeps themselves).
   int polish_after = 20;
   int polish_iterations = 30;  ///< Newton (LM) steps per attempt at most
   /// Levenberg-Marquardt damping of the first step, relative to the mean diagonal of J^T J.
@@ -78,8 +78,10 @@ int polish_solution(const LocalProblem& problem, const LocalProblemOptions& opti
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 
 /// Solves the problem by NLGS from r = 0 with the simulation's sweep and local solver; the error
-/// is evaluated after every sweep (one W r product). With PolishMethod::newton, Newton attempts
-/// are interleaved with the sweeps (see LocalProblemOptions::polish_after and nlgs_solver/README.md).
+/// (one W r product) is evaluated after every sweep until it falls at a steady rate, then where
+/// that rate says the tolerance may be met, and at least every 16 sweeps. With PolishMethod::newton,
+/// Newton attempts are interleaved with the sweeps where they cost less than the sweeps left (see
+/// LocalProblemOptions::polish_after and nlgs_solver/README.md).
 LocalProblemSolution solve_local_problem(const LocalProblem& problem, const LocalProblemOptions& options);
 
 /// Alart-Curnier function of the problem at r (Alart & Curnier 1991), per contact with
