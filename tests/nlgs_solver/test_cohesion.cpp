@@ -3,8 +3,10 @@
 // force, and Coulomb's cone acts on the normal force including the cohesive part.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "core/polyhedron.hpp"
 #include "support/test_scene.hpp"
@@ -151,6 +153,60 @@ TEST(Cohesion, FrictionActsOnTheNormalForceIncludingCohesion) {
             << " m/s, closed form " << expected << " m/s\n";
   EXPECT_LT(std::abs(sticking), 1e-9);
   EXPECT_NEAR(sliding, expected, 0.01 * expected);
+}
+
+/// Two equal touching spheres (radius r, mass m) bound by their mutual gravity (direct sum, G
+/// chosen so that the pull is of the order of the cohesion) and the pull-off force `pull_off`,
+/// set in a rigid spin about their common centre of mass at `spin` rad/s (each centre on a circle
+/// of radius r, each sphere turning at the same rate, so the contact does not slip). Steps two
+/// turns; returns the widest gap between the spheres seen on the way.
+double spinning_pair_widest_gap(double pull_off, double spin, double& mass, double& G) {
+  TestScene s(2500.0, 0.5, 0.0);
+  G = 1e-3;
+  s.options.gravity.kind = GravitySettings::Kind::self;
+  s.options.gravity.self_gravity.method = gravity::Method::direct;
+  s.options.gravity.self_gravity.G = G;
+  s.options.integrator.time_step = 1e-3;
+  const Vec3 axis = Vec3::UnitZ();
+  const int a = s.sphere(radius, Vec3(-radius, 0, 0), spin * axis.cross(Vec3(-radius, 0, 0)));
+  const int b = s.sphere(radius, Vec3(radius, 0, 0), spin * axis.cross(Vec3(radius, 0, 0)));
+  s.state.angular_velocity[static_cast<std::size_t>(a)] = spin * axis;
+  s.state.angular_velocity[static_cast<std::size_t>(b)] = spin * axis;
+  mass = s.model.mass[static_cast<std::size_t>(a)];
+  s.model.contact_laws.reset(1, ContactLaw{0.5, 0.0, pull_off});
+  double widest = 0.0;
+  const double turns = 2.0;
+  while (spin > 0 && s.state.time < turns * 2 * pi / spin) {
+    s.advance();
+    const double gap =
+        (s.state.position[static_cast<std::size_t>(b)] - s.state.position[static_cast<std::size_t>(a)]).norm() -
+        2 * radius;
+    widest = std::max(widest, gap);
+  }
+  return widest;
+}
+
+// Reference: in a rigid spin at omega about their common centre of mass, each sphere's centre
+// turns on a circle of radius r and needs the centripetal force m omega^2 r; the pair can give at
+// most its mutual gravity G m^2 / (2 r)^2 plus the pull-off force F_c. It stays bound while
+// m omega^2 r <= G m^2 / (4 r^2) + F_c and separates above: omega_c^2 = (G m / (4 r^2) + F_c / m) / r
+// (the two-grain limit of the spin-up of a cohesive self-gravitating aggregate, examples/spin-up/).
+// Pass, for F_c = 0 (gravity alone) and F_c = the gravitational pull (both terms count): at
+// omega^2 = 0.99 omega_c^2 the gap stays within the bond range (1e-3 r) for two turns; at
+// omega^2 = 1.01 omega_c^2 the pair comes apart by more than r within two turns.
+TEST(Cohesion, SpinningPairSeparatesAboveTheSpinWhereGravityAndCohesionNoLongerHoldIt) {
+  double mass = 0.0, G = 0.0;
+  spinning_pair_widest_gap(0.0, 0.0, mass, G);
+  const double gravity_pull = G * mass * mass / (4 * radius * radius);
+  for (const double pull_off : {0.0, gravity_pull}) {
+    const double critical = std::sqrt((gravity_pull + pull_off) / (mass * radius));
+    const double bound = spinning_pair_widest_gap(pull_off, std::sqrt(0.99) * critical, mass, G);
+    const double apart = spinning_pair_widest_gap(pull_off, std::sqrt(1.01) * critical, mass, G);
+    std::cout << "spinning pair, F_c = " << pull_off << " N, omega_c = " << critical
+              << " rad/s: widest gap at 0.99 omega_c^2 " << bound << " m, at 1.01 omega_c^2 " << apart << " m\n";
+    EXPECT_LT(bound, 1e-3 * radius);
+    EXPECT_GT(apart, radius);
+  }
 }
 
 }  // namespace

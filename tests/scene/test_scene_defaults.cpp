@@ -125,6 +125,44 @@ TEST(Examples, AccretionStudyFilesAreTheirCases) {
   EXPECT_EQ(files, 18u);  // 7 sphere sets, 5 polyhedra sets, 6 friction values
 }
 
+// examples/spin-up/: each stage scene spin-muM-cF must hold the bodies of accretion-muM (a branch
+// with --from refuses other bodies, and the stages' radii and the settled state must belong to the
+// same grains), with friction M, pull-off force F N, no restitution, and one rigid spin increment
+// through the centre of mass, along z in the file (run.sh turns it onto the aggregate's axis of
+// largest moment of inertia; examples/spin-up/README.md).
+TEST(Examples, SpinUpStagesHoldTheirAccretionsBodiesAndTheirContactLaw) {
+  const std::filesystem::path folder = std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "spin-up";
+  std::size_t stages = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    const std::string stem = entry.path().stem().string();
+    if (entry.path().extension() != ".toml" || stem.rfind("spin-mu", 0) != 0) continue;
+    ++stages;
+    SCOPED_TRACE(stem);
+    const std::size_t c_at = stem.find("-c");
+    const std::string mu = stem.substr(7, c_at - 7);
+    const Scene stage = load_scene_file(entry.path());
+    const Scene accretion = load_scene_file(folder / ("accretion-mu" + mu + ".toml"));
+    ASSERT_EQ(stage.model.body_count(), accretion.model.body_count());
+    for (std::size_t b = 0; b < stage.model.body_count(); ++b) {
+      EXPECT_EQ(stage.model.sphere_radius(b), accretion.model.sphere_radius(b));
+      EXPECT_EQ(stage.model.mass[b], accretion.model.mass[b]);
+    }
+    const ContactLaw& law = stage.model.contact_laws.get(0, 0);
+    EXPECT_EQ(law.friction_coefficient, std::stod(mu));
+    EXPECT_EQ(law.friction_coefficient, accretion.model.contact_laws.get(0, 0).friction_coefficient);
+    EXPECT_EQ(law.cohesion, std::stod(stem.substr(c_at + 2)));
+    EXPECT_EQ(law.normal_restitution, 0.0);
+    ASSERT_EQ(stage.initial_conditions.size(), 1u);
+    const InitialCondition& spin = stage.initial_conditions[0];
+    EXPECT_FALSE(spin.centre.has_value());
+    EXPECT_EQ(spin.velocity, Vec3::Zero());
+    EXPECT_EQ(spin.angular_velocity.head<2>(), Eigen::Vector2d::Zero());
+    EXPECT_GT(spin.angular_velocity.z(), 0.0);
+    EXPECT_FALSE(stage.run.until_rest);
+  }
+  EXPECT_EQ(stages, 6u);  // mu 0.2 and 0.6, F_c 0, 100 and 300 N
+}
+
 TEST(DefaultScene, SameSeedSameGrainsOtherSeedOtherGrains) {
   std::string text = default_scene_toml();
   const Scene a = parse_scene(text, "a.toml");

@@ -1,0 +1,80 @@
+#!/bin/bash
+# Spin-up to failure of a 1 000-sphere aggregate, from scratch (README.md in this folder):
+#   examples/spin-up/run.sh [RUBBLE] [RUNS_DIR]
+# RUBBLE defaults to build/release/apps/rubble, RUNS_DIR to spin-up-runs. For mu = 0.2 and 0.6:
+# accretes the aggregate to rest, then for each pull-off force (0, 100, 300 N) climbs a staircase
+# of spins placed by the closed-form limit omega_H of that case: omega_k = 0.7 x 1.2^k omega_H.
+# Every stage branches from the previous one (--from), adds the rigid spin increment
+# omega_k - omega_{k-1} about the settled aggregate's axis of largest moment of inertia, through
+# its centre of mass ([[initial_conditions]]; spin_up.py axis), and relaxes for
+# RELAX seconds; spin_up.py check measures it. The climb stops at the first failed stage; one
+# refinement stage then branches from the last stage that held, to the geometric mean of the two
+# spins (or, when the first stage failed, from the settled aggregate to 0.7/1.44 of its spin).
+# Each run's CPU time (user, system, wall: /usr/bin/time) is written to RUN.log.time.
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+rubble=$(realpath "${1:-$here/../../build/release/apps/rubble}")
+runs=${2:-spin-up-runs}
+python=/usr/bin/python3
+relax=1700 # s: one dynamical time 1/sqrt(G rho) of the grains' density
+mkdir -p "$runs"
+
+timed() { # timed LOG COMMAND...: run with one thread, CPU times into LOG.time
+  local log=$1
+  shift
+  OMP_NUM_THREADS=1 /usr/bin/time -f "%U %S %e" -o "$log.time" "$@" > "$log" 2>&1
+}
+calc() { awk "BEGIN { printf \"%.6g\", $1 }"; }
+
+# stage NAME FROM SPIN_BEFORE SPIN OUT: one branched stage, measured; returns the check's status.
+stage() {
+  local name=$1 from=$2 before=$3 spin=$4 out=$5 end
+  if [ ! -f "$out/stage.json" ]; then
+    local dw
+    dw=$(calc "$spin - $before")
+    sed "s/^angular_velocity = \[0.0, 0.0, 1e-4\]/angular_velocity = [$(awk -v dw="$dw" -F', ' '{ printf "%.9g, %.9g, %.9g", dw * $1, dw * $2, dw * $3 }' <<< "$axis")]/" \
+      "$here/$name.toml" > "$out.toml"
+    end=$(calc "$("$python" "$here/spin_up.py" end-time "$from") + $relax")
+    rm -rf "$out"
+    timed "$out.log" "$rubble" run "$out.toml" --from "$from" --end-time "$end" --out "$out" -q ||
+      { echo "$out: rubble run failed (see $out.log)" >&2; exit 1; }
+  fi
+  local status=0
+  "$python" "$here/spin_up.py" check "$out" "$acc" --spin "$spin" || status=$?
+  [ $status -eq 0 ] || [ $status -eq 10 ] || { echo "$out: the check failed ($status)" >&2; exit 1; }
+  return $status
+}
+
+for mu in 0.2 0.6; do
+  acc=$runs/accretion-mu$mu
+  if [ ! -f "$acc/run.h5" ]; then
+    echo "accretion mu = $mu"
+    timed "$acc.log" "$rubble" run "$here/accretion-mu$mu.toml" --out "$acc" -q
+  fi
+  axis=$("$python" "$here/spin_up.py" axis "$acc")
+  for c in 0 100 300; do
+    name=spin-mu$mu-c$c
+    limit=$("$python" "$here/spin_up.py" predict "$acc" $mu $c)
+    echo "$name: closed-form limit $limit rad/s"
+    prev=$acc
+    held=0
+    spin=0
+    for k in 0 1 2 3 4 5 6 7; do
+      next=$(calc "0.7 * 1.2^$k * $limit")
+      if stage $name "$prev" $spin $next "$runs/$name-$k"; then
+        prev=$runs/$name-$k
+        held=$next
+        spin=$next
+      else
+        spin=$next
+        break
+      fi
+    done
+    if [ "$prev" = "$acc" ]; then
+      stage $name "$acc" 0 "$(calc "$spin / 1.44")" "$runs/$name-r" || true
+    else
+      stage $name "$prev" $held "$(calc "sqrt($held * $spin)")" "$runs/$name-r" || true
+    fi
+  done
+done
+"$python" "$here/spin_up.py" analyse "$runs" --png "$runs/spin-up.png" --markdown "$runs/results.md"
