@@ -3,20 +3,21 @@
 #   examples/spin-up/run.sh [RUBBLE] [RUNS_DIR]
 # RUBBLE defaults to build/release/apps/rubble, RUNS_DIR to spin-up-runs. For mu = 0.2 and 0.6:
 # accretes the aggregate to rest, then for each pull-off force (0, 100, 300 N) climbs a staircase
-# of spins placed by the closed-form limit omega_H of that case: omega_k = 0.7 x 1.2^k omega_H.
+# of spins placed by the closed-form limit omega_H of that case: omega_k = 0.7 x 1.3^k omega_H.
 # Every stage branches from the previous one (--from), adds the rigid spin increment
 # omega_k - omega_{k-1} about the settled aggregate's axis of largest moment of inertia, through
 # its centre of mass ([[initial_conditions]]; spin_up.py axis), and relaxes for
-# RELAX seconds; spin_up.py check measures it. The climb stops at the first failed stage; one
-# refinement stage then branches from the last stage that held, to the geometric mean of the two
-# spins (or, when the first stage failed, from the settled aggregate to 0.7/1.44 of its spin).
+# 1 700 s (the first stage, the largest increment) or 850 s (the next ones); spin_up.py check
+# measures it. The climb stops at the first failed stage (when the first stage fails, one stage
+# from the settled aggregate at 0.7 / 1.3 of its spin brackets the failure from below).
 # Each run's CPU time (user, system, wall: /usr/bin/time) is written to RUN.log.time.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 rubble=$(realpath "${1:-$here/../../build/release/apps/rubble}")
 runs=${2:-spin-up-runs}
 python=/usr/bin/python3
-relax=1700 # s: one dynamical time 1/sqrt(G rho) of the grains' density
+first_relax=1700 # s: one dynamical time 1/sqrt(G rho) of the grains' density, after the first increment
+relax=850        # s: half of it (about the free-fall time 920 s) after each later, smaller one
 mkdir -p "$runs"
 
 timed() { # timed LOG COMMAND...: run with one thread, CPU times into LOG.time
@@ -26,9 +27,9 @@ timed() { # timed LOG COMMAND...: run with one thread, CPU times into LOG.time
 }
 calc() { awk "BEGIN { printf \"%.6g\", $1 }"; }
 
-# stage NAME FROM SPIN_BEFORE SPIN OUT: one branched stage, measured; returns the check's status.
+# stage NAME FROM SPIN_BEFORE SPIN OUT RELAX: one branched stage, measured; returns the check's status.
 stage() {
-  local name=$1 from=$2 before=$3 spin=$4 out=$5 end
+  local name=$1 from=$2 before=$3 spin=$4 out=$5 relax=$6 end
   if [ ! -f "$out/stage.json" ]; then
     local dw
     dw=$(calc "$spin - $before")
@@ -57,13 +58,11 @@ for mu in 0.2 0.6; do
     limit=$("$python" "$here/spin_up.py" predict "$acc" $mu $c)
     echo "$name: closed-form limit $limit rad/s"
     prev=$acc
-    held=0
     spin=0
-    for k in 0 1 2 3 4 5 6 7; do
-      next=$(calc "0.7 * 1.2^$k * $limit")
-      if stage $name "$prev" $spin $next "$runs/$name-$k"; then
+    for k in 0 1 2 3 4 5; do
+      next=$(calc "0.7 * 1.3^$k * $limit")
+      if stage $name "$prev" $spin $next "$runs/$name-$k" $([ $k -eq 0 ] && echo $first_relax || echo $relax); then
         prev=$runs/$name-$k
-        held=$next
         spin=$next
       else
         spin=$next
@@ -71,9 +70,7 @@ for mu in 0.2 0.6; do
       fi
     done
     if [ "$prev" = "$acc" ]; then
-      stage $name "$acc" 0 "$(calc "$spin / 1.44")" "$runs/$name-r" || true
-    else
-      stage $name "$prev" $held "$(calc "sqrt($held * $spin)")" "$runs/$name-r" || true
+      stage $name "$acc" 0 "$(calc "$spin / 1.3")" "$runs/$name-r" $first_relax || true
     fi
   done
 done

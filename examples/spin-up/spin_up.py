@@ -31,7 +31,7 @@ G = 6.674e-11  # m^3 kg^-1 s^-2, as rubble's default [gravity] G
 # Failure thresholds (README.md, "Failure criterion").
 SHED_GRAINS = 1  # a grain whose centre is beyond R_out + d_max of the centre of mass is shed
 FLATTENING_CHANGE = 0.02  # change of the equivalent ellipsoid's c/a since the settled state
-NON_RIGID_RMS = 0.05  # RMS non-rigid displacement over one stage, in mean grain diameters
+NON_RIGID_RMS = 0.1  # RMS non-rigid displacement over one stage, in mean grain diameters
 
 
 def load_state(run_dir, snapshot=-1):
@@ -201,6 +201,21 @@ def rumpf_tensile_strength(pull_off, packing, coordination, diameter2):
     return packing * coordination * pull_off / (math.pi * diameter2)
 
 
+def implied_friction_angle(spin, bulk_density, radius):
+    """The friction angle phi* for which the cohesionless closed form gives `spin` (bisection);
+    None when `spin` is at or above the orbital limit sqrt(g0), which no phi reaches."""
+    lo, hi = 1e-6, math.radians(89.999)
+    if spin >= holsapple_sphere_spin(hi, 0.0, bulk_density, radius):
+        return None
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if holsapple_sphere_spin(mid, 0.0, bulk_density, radius) < spin:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
 def friction_angle(mu):
     """The aggregate's friction angle taken from the contact friction: phi = atan(mu)."""
     return math.atan(mu)
@@ -287,6 +302,14 @@ def cmd_analyse(args):
             row["ratio"] = row["omega_f"] / predicted
             row["ratio_range"] = [lo / predicted, spins[k] / predicted]
         rows.append(row)
+    for row in rows:  # phi* from the cohesionless failure of the same mu, and the ratio with it
+        base = [r for r in rows if r["mu"] == row["mu"] and r["cohesion_N"] == 0.0 and "omega_f" in r]
+        ref = reference(os.path.join(args.runs, f"accretion-mu{row['mu']}"))
+        phi_star = implied_friction_angle(base[0]["omega_f"], ref["bulk_density"], ref["radius"]) if base else None
+        row["phi_star_deg"] = math.degrees(phi_star) if phi_star else None
+        if phi_star and "omega_f" in row:
+            row["holsapple_phi_star"] = holsapple_sphere_spin(phi_star, row["sigma_t_Pa"], ref["bulk_density"], ref["radius"])
+            row["ratio_phi_star"] = row["omega_f"] / row["holsapple_phi_star"]
     text = markdown(rows, args.runs)
     print(text)
     if args.markdown:
@@ -301,15 +324,22 @@ def markdown(rows, runs):
     for mu, ref in refs.items():
         g0 = 4 / 3 * math.pi * G * ref["bulk_density"]
         out.append(f"| {mu} | {ref['radius']:.2f} | {ref['bulk_density']:.0f} | {ref['packing']:.3f} | {ref['z_interior']:.2f} | {ref['c_over_a']:.3f} | {math.sqrt(g0):.3e} |")
-    out += ["", "| μ | F_c (N) | σ_t (Pa) | holds at ω (rad/s) | fails at ω (rad/s) | mode | ω_f period (h) | ω_H (rad/s) | ω_f / ω_H (bracket) |", "|---|---|---|---|---|---|---|---|---|"]
+    out += [
+        "",
+        "| μ | F_c (N) | σ_t (Pa) | holds at ω (rad/s) | fails at ω (rad/s) | mode | ω_f (rad/s) | period (h) | ω_H, φ = atan μ (rad/s) | ω_f / ω_H (bracket) | φ* | ω_f / ω_H(φ*) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
+        star = f"{r['phi_star_deg']:.1f}°" if r.get("phi_star_deg") else "—"
         if "omega_f" in r:
             out.append(
-                f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | {r['holds_up_to']:.2e} | {r['fails_at']:.2e} | {r['mode']} | "
-                f"{2 * math.pi / r['omega_f'] / 3600:.2f} | {r['holsapple']:.3e} | {r['ratio']:.2f} ({r['ratio_range'][0]:.2f}–{r['ratio_range'][1]:.2f}) |"
+                f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | {r['holds_up_to']:.3e} | {r['fails_at']:.3e} | {r['mode']} | {r['omega_f']:.3e} | "
+                f"{2 * math.pi / r['omega_f'] / 3600:.2f} | {r['holsapple']:.3e} | {r['ratio']:.2f} ({r['ratio_range'][0]:.2f}–{r['ratio_range'][1]:.2f}) | {star} | "
+                + (f"{r['ratio_phi_star']:.2f}" if "ratio_phi_star" in r else "—")
+                + " |"
             )
         else:
-            out.append(f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | {r['holds_up_to']:.2e} | — | no failure | — | {r['holsapple']:.3e} | > {r['holds_up_to'] / r['holsapple']:.2f} |")
+            out.append(f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | {r['holds_up_to']:.3e} | — | no failure | — | — | {r['holsapple']:.3e} | > {r['holds_up_to'] / r['holsapple']:.2f} | {star} | — |")
     out += ["", "Stages (spin at the end of the stage: grains shed, c/a, RMS non-rigid displacement in mean diameters):", ""]
     for r in rows:
         cells = ", ".join(f"{s['spin']:.1e}: {s['shed']}/{s['c_over_a']:.3f}/{s['non_rigid_rms_d']:.3f}{' F' if s['failed'] else ''}" for s in r["stage_rows"])
@@ -330,6 +360,10 @@ def plot(rows, runs, png):
         sig = np.linspace(0, 1.1 * max(r["sigma_t_Pa"] for r in rows), 200)
         curve = [holsapple_sphere_spin(friction_angle(mu), s, ref["bulk_density"], ref["radius"]) for s in sig]
         ax.plot(sig, 1e3 * np.array(curve), color=colours.get(mu, "k"), label=f"Holsapple DP sphere, φ = atan {mu} = {math.degrees(friction_angle(mu)):.0f}°")
+        stars = [r["phi_star_deg"] for r in rows if r["mu"] == mu and r.get("phi_star_deg")]
+        if stars:
+            curve = [holsapple_sphere_spin(math.radians(stars[0]), s, ref["bulk_density"], ref["radius"]) for s in sig]
+            ax.plot(sig, 1e3 * np.array(curve), color=colours.get(mu, "k"), ls="--", lw=0.9, label=f"same, φ* = {stars[0]:.0f}° (fits μ = {mu}, F_c = 0)")
         for r in rows:
             if r["mu"] != mu:
                 continue

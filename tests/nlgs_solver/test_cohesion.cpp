@@ -191,9 +191,13 @@ double spinning_pair_widest_gap(double pull_off, double spin, double& mass, doub
 // most its mutual gravity G m^2 / (2 r)^2 plus the pull-off force F_c. It stays bound while
 // m omega^2 r <= G m^2 / (4 r^2) + F_c and separates above: omega_c^2 = (G m / (4 r^2) + F_c / m) / r
 // (the two-grain limit of the spin-up of a cohesive self-gravitating aggregate, examples/spin-up/).
-// Pass, for F_c = 0 (gravity alone) and F_c = the gravitational pull (both terms count): at
-// omega^2 = 0.99 omega_c^2 the gap stays within the bond range (1e-3 r) for two turns; at
-// omega^2 = 1.01 omega_c^2 the pair comes apart by more than r within two turns.
+// Above it without cohesion the pair is not unbound but goes on an eccentric orbit: 0.5 % over the
+// circular speed takes the apoapsis to about 1 + 4 x 0.005 of the separation 2 r, a gap of 0.04 r;
+// with cohesion the bond breaks (once the gap passes its range, 1e-3 r) and gravity alone cannot
+// hold the pair, which flies apart. Pass, for F_c = 0 (gravity alone) and F_c = the gravitational
+// pull (both terms count): at omega^2 = 0.99 omega_c^2 the gap stays within the bond range (1e-3 r)
+// for two turns; at omega^2 = 1.01 omega_c^2 it opens beyond 1e-2 r within two turns (measured:
+// 2e-6 m and 2e-3 m without cohesion, 2e-6 m and 0.5 m with it; r = 0.05 m).
 TEST(Cohesion, SpinningPairSeparatesAboveTheSpinWhereGravityAndCohesionNoLongerHoldIt) {
   double mass = 0.0, G = 0.0;
   spinning_pair_widest_gap(0.0, 0.0, mass, G);
@@ -205,7 +209,7 @@ TEST(Cohesion, SpinningPairSeparatesAboveTheSpinWhereGravityAndCohesionNoLongerH
     std::cout << "spinning pair, F_c = " << pull_off << " N, omega_c = " << critical
               << " rad/s: widest gap at 0.99 omega_c^2 " << bound << " m, at 1.01 omega_c^2 " << apart << " m\n";
     EXPECT_LT(bound, 1e-3 * radius);
-    EXPECT_GT(apart, radius);
+    EXPECT_GT(apart, 1e-2 * radius);
   }
 }
 
