@@ -9,7 +9,8 @@
 # its centre of mass ([[initial_conditions]]; spin_up.py axis), and relaxes for
 # 1 700 s (the first stage, the largest increment) or 850 s (the next ones); spin_up.py check
 # measures it. The climb stops at the first failed stage (when the first stage fails, one stage
-# from the settled aggregate at 0.7 / 1.3 of its spin brackets the failure from below).
+# from the settled aggregate at 0.7 / 1.3 of its spin brackets the failure from below). Last, a
+# control per mu: the settled aggregate with no spin, measured the same way.
 # Each run's CPU time (user, system, wall: /usr/bin/time) is written to RUN.log.time.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -73,5 +74,12 @@ for mu in 0.2 0.6; do
       stage $name "$acc" 0 "$(calc "$spin / 1.3")" "$runs/$name-r" $first_relax || true
     fi
   done
+done
+# Control: the settled aggregate branched with no spin (an increment of 1e-12 rad/s) for 1 700 s,
+# measured like a stage: the creep that the failure criterion sees without any spin.
+for mu in 0.6 0.2; do
+  acc=$runs/accretion-mu$mu
+  axis=$("$python" "$here/spin_up.py" axis "$acc")
+  stage spin-mu$mu-c0 "$acc" 0 1e-12 "$runs/control-mu$mu" $first_relax || true
 done
 "$python" "$here/spin_up.py" analyse "$runs" --png "$runs/spin-up.png" --markdown "$runs/results.md"

@@ -296,7 +296,17 @@ def cmd_analyse(args):
             "phi_deg": math.degrees(phi),
             "stage_rows": [dict(spin=w, **{n: s[n] for n in ("shed", "c_over_a", "non_rigid_rms_d", "failed")}) for w, s in zip(spins, stages)],
         }
-        if k is not None:
+        # The same bracket by shedding and the shape (c/a) alone, without the non-rigid displacement
+        # (which also counts the creep of a pile not fully at rest: README.md, "Results").
+        shape_failed = [s["failed_shed"] or abs(s["flattening_change"]) > FLATTENING_CHANGE for s in stages]
+        ks = shape_failed.index(True) if True in shape_failed else None
+        row["shape_bracket"] = [
+            max((w for w, f in zip(spins, shape_failed) if not f and (ks is None or w < spins[ks])), default=0.0),
+            spins[ks] if ks is not None else None,
+        ]
+        if k is not None and row["holds_up_to"] == 0.0:
+            row["ratio_below"] = spins[k] / predicted  # failed at every spin tried: an upper bound
+        elif k is not None:
             lo = row["holds_up_to"]
             row["omega_f"] = 0.5 * (lo + spins[k])
             row["ratio"] = row["omega_f"] / predicted
@@ -338,8 +348,17 @@ def markdown(rows, runs):
                 + (f"{r['ratio_phi_star']:.2f}" if "ratio_phi_star" in r else "—")
                 + " |"
             )
+        elif "ratio_below" in r:
+            out.append(
+                f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | — | {r['fails_at']:.3e} | {r['mode']} | < {r['fails_at']:.3e} | > {2 * math.pi / r['fails_at'] / 3600:.2f} | "
+                f"{r['holsapple']:.3e} | < {r['ratio_below']:.2f} | — | — |"
+            )
         else:
             out.append(f"| {r['mu']} | {r['cohesion_N']:.0f} | {r['sigma_t_Pa']:.2f} | {r['holds_up_to']:.3e} | — | no failure | — | — | {r['holsapple']:.3e} | > {r['holds_up_to'] / r['holsapple']:.2f} | {star} | — |")
+    out += ["", "By shedding and c/a alone (no non-rigid displacement criterion): ω_f / ω_H brackets:", ""]
+    for r in rows:
+        lo, hi = r["shape_bracket"]
+        out.append(f"- {r['series']}: holds at {lo / r['holsapple']:.2f}, " + (f"fails at {hi / r['holsapple']:.2f}" if hi else "no failure"))
     out += ["", "Stages (spin at the end of the stage: grains shed, c/a, RMS non-rigid displacement in mean diameters):", ""]
     for r in rows:
         cells = ", ".join(f"{s['spin']:.1e}: {s['shed']}/{s['c_over_a']:.3f}/{s['non_rigid_rms_d']:.3f}{' F' if s['failed'] else ''}" for s in r["stage_rows"])
@@ -369,15 +388,20 @@ def plot(rows, runs, png):
                 continue
             if "omega_f" in r:
                 ax.errorbar(r["sigma_t_Pa"], 1e3 * r["omega_f"], yerr=1e3 * 0.5 * (r["fails_at"] - r["holds_up_to"]), fmt="o", color=colours.get(mu, "k"), capsize=3)
-            else:
-                ax.plot(r["sigma_t_Pa"], 1e3 * r["holds_up_to"], "^", color=colours.get(mu, "k"))
+            elif "ratio_below" in r:  # failed at every spin tried
+                ax.plot(r["sigma_t_Pa"], 1e3 * r["fails_at"], "v", color=colours.get(mu, "k"), mfc="none")
+                lo, hi = r["shape_bracket"]
+                if lo > 0 and hi:  # the bracket by shedding and shape alone
+                    ax.errorbar(r["sigma_t_Pa"] + 0.05, 0.5e3 * (lo + hi), yerr=0.5e3 * (hi - lo), fmt="s", mfc="none", color=colours.get(mu, "k"), capsize=3)
+            else:  # held at every spin tried
+                ax.plot(r["sigma_t_Pa"], 1e3 * r["holds_up_to"], "^", color=colours.get(mu, "k"), mfc="none")
         g0 = 4 / 3 * math.pi * G * ref["bulk_density"]
         ax.axhline(1e3 * math.sqrt(g0), color=colours.get(mu, "k"), ls=":", lw=0.8)
     ax.set_xlabel("bulk tensile strength σ_t = φ Z F_c / (π ⟨d²⟩), Pa (Rumpf 1962)")
     ax.set_ylabel("failure spin ω_f, 10⁻³ rad/s")
     ax.set_title("Spin-up to failure, 1 000 spheres (points: rubble; lines: closed form)", fontsize=9)
     ax.legend(fontsize=7, loc="upper left")
-    ax.text(0.98, 0.02, "dotted: orbital limit √(4πGρ_b/3)", transform=ax.transAxes, ha="right", fontsize=7)
+    ax.text(0.98, 0.02, "dotted: orbital limit √(4πGρ_b/3); bars: last spin held to first failed;\n▽: failed at the lowest spin tried (an upper bound); □: bracket by shedding and c/a alone", transform=ax.transAxes, ha="right", fontsize=6.5)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
 
