@@ -62,7 +62,8 @@ for mu in 0.2 0.6; do
     spin=0
     for k in 0 1 2 3 4 5; do
       next=$(calc "0.7 * 1.3^$k * $limit")
-      if stage $name "$prev" $spin $next "$runs/$name-$k" $([ $k -eq 0 ] && echo $first_relax || echo $relax); then
+      [ $k -eq 0 ] && wait_s=$first_relax || wait_s=$relax
+      if stage $name "$prev" "$spin" "$next" "$runs/$name-$k" "$wait_s"; then
         prev=$runs/$name-$k
         spin=$next
       else
