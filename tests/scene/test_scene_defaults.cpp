@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <numbers>
 
@@ -85,6 +86,39 @@ TEST(Examples, EveryExampleFileParses) {
     }) << entry.path();
   }
   EXPECT_GE(count, 2u);
+}
+
+// examples/angle-of-repose/: the four heaps of issue 20, each what its name says: heap-murM has rolling
+// resistance M, and all share mu = 0.5, e_n = 0, no twisting resistance, a floor of 1 781 fixed spheres
+// over a disc of radius 0.25 m, and an inflow of 2 000 grains at 1 000 grains/s.
+TEST(Examples, AngleOfReposeFilesAreTheirCases) {
+  std::size_t files = 0;
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(RUBBLE_EXAMPLES_DIR) / "angle-of-repose")) {
+    if (entry.path().extension() != ".toml") continue;
+    ++files;
+    const std::string stem = entry.path().stem().string();
+    SCOPED_TRACE(stem);
+    const Scene scene = load_scene_file(entry.path());
+    EXPECT_EQ(scene.name, stem);
+    const ContactLaw& law = scene.model.contact_laws.get(0, 0);
+    EXPECT_EQ(law.rolling_friction, std::stod(stem.substr(stem.find("mur") + 3)));
+    EXPECT_EQ(law.friction_coefficient, 0.5);
+    EXPECT_EQ(law.normal_restitution, 0.0);
+    EXPECT_EQ(law.twisting_friction, 0.0);
+    ASSERT_EQ(scene.inflow.inflows.size(), 1u);
+    EXPECT_EQ(scene.inflow.inflows[0].count, 2000u);
+    EXPECT_EQ(scene.inflow.inflows[0].rate, 1000.0);
+    EXPECT_EQ(scene.inflow.first_body, 1782u);  // the floor's spheres and the plane under them
+    std::size_t floor = 0;
+    for (std::size_t b = 0; b < scene.inflow.first_body; ++b) {
+      if (!scene.model.is_driven(b)) continue;
+      ++floor;
+      EXPECT_LE(std::hypot(scene.state.position[b].x(), scene.state.position[b].y()), 0.25);
+    }
+    EXPECT_EQ(floor, 1781u);
+  }
+  EXPECT_EQ(files, 4u);  // mu_r = 0, 0.05, 0.1, 0.2
 }
 
 // examples/accretion/: the study's sets (the LMGC90 accretion paper), each file what its name says: spheres-N,
