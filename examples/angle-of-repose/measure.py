@@ -22,7 +22,8 @@ It also prints what says whether the heap has settled and stays on the floor: th
 percentile of the grain speeds |v| + |w| r, the total kinetic energy at the last snapshot, and the number of
 grains farther from the axis than the floor's edge (FLOOR_EDGE) minus one grain radius.
 
-The plot (--plot) has the angle against mu_r, rubble's beside the published DEM values (PUBLISHED below),
+It also prints the angle of the Zhou et al. (2002) correlation at each mu_r > 0 (zhou_2002_correlation).
+The plot (--plot) has both angles against mu_r beside that correlation, the mean surface profiles h(r),
 and a side view of each heap: the grains in a slab |y - y_c| < one diameter through the axis, with the
 fitted lines.
 """
@@ -165,8 +166,8 @@ def draw(runs, results, path):
     import matplotlib.pyplot as plt
 
     n = len(runs)
-    fig = plt.figure(figsize=(4.2 * n, 9.0))
-    grid = fig.add_gridspec(2, n)
+    fig = plt.figure(figsize=(4.2 * n, 7.5))
+    grid = fig.add_gridspec(2, n, height_ratios=[1.6, 1.0])
     ax = fig.add_subplot(grid[0, : n // 2])
     mu_r = [run["mu_r"] for run in runs]
     ax.errorbar(mu_r, [res["angle"] for res in results], yerr=[res["sector_std"] for res in results],
@@ -186,7 +187,7 @@ def draw(runs, results, path):
     ax.set_xlim(-0.01, top)
     ax.set_ylim(0, 45)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=7, loc="lower right")
     prof = fig.add_subplot(grid[0, n // 2:])
     for run, res in zip(runs, results):
         r_mid, _, mean_h = res["profile"]
