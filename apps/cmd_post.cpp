@@ -161,9 +161,9 @@ void register_post_command(CLI::App& app) {
                    "../share/rubble/)")
       ->type_name("FILE");
   post->add_flag("--include-unfinished", args->include_unfinished,
-                 "With --study: also fit and plot runs that did not end at rest (interrupted, killed, cut by the "
-                 "end time) or did not reach the window (--stable-after); they are flagged in study.csv and drawn "
-                 "as open markers");
+                 "With --study: also fit and plot runs that did not run to their end (at rest or at the end time: "
+                 "interrupted, killed, failed) or did not reach the window (--stable-after); they are flagged in "
+                 "study.csv and drawn as open markers");
   post->add_flag("-q,--quiet", args->quiet, "Do not list progress and files");
   post->callback([args] {
     if (args->run_file.empty() && args->study.empty()) {

@@ -174,8 +174,10 @@ def included_rows(study):
 
 
 def complete(study, i):
-    """True when run i ended at rest inside the window (the others are drawn as open markers)."""
-    return study["status"][i] == "at_rest" and study.get("reached_window", [1] * len(study["run"]))[i] == 1
+    """True when run i ran to its end (at rest or at its end time) and reached the window (the
+    others are drawn as open markers)."""
+    reached = study.get("reached_window", [1] * len(study["run"]))[i] == 1
+    return study["status"][i] in ("at_rest", "end_time") and reached
 
 
 def number(value):
@@ -339,7 +341,7 @@ def energy_plot(study, rows, directory, window):
         style = "-" if study["shape"][i] == "spheres" else "--"
         label = f"{study['shape'][i]}, $n_s$ = {study['grains'][i]:g}, μ = {study['friction'][i]:g}"
         if not complete(study, i):
-            label += " (not at rest in the window)"
+            label += " (cut short or short of the window)"
         ax.semilogy(t, e, style, color=colour, lw=1, label=label)
         rest = number(study["rest_time"][i])
         if not math.isnan(rest) and t:
@@ -368,7 +370,7 @@ def study_plots(directory):
     ns = r"number of grains $n_s$"
     ns_series, mu_series = split_series(study, rows)
     note = caption(study, rows, window)
-    ringed = "; ringed: runs not at rest in the window (--include-unfinished)" if not all(
+    ringed = "; ringed: runs cut short or short of the window (--include-unfinished)" if not all(
         complete(study, i) for i in rows) else ""
 
     energy_plot(study, rows, directory, window)

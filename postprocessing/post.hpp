@@ -79,9 +79,9 @@ struct StudyOptions {
   double stable_after = 7500.0;
   bool plots = true;   ///< draw the PNGs with plots.py
   PlotOptions plot{};  ///< interpreter, script and warnings of the plots
-  /// Also fit and plot runs that did not end at rest (/run@status other than at_rest: stopped
-  /// by a signal or a failure, killed, still running, ended at end_time before rest, or "unknown"
-  /// in a format 1 file) or did not reach the window. They are always listed in study.csv, with
+  /// Also fit and plot runs that did not run to their end (/run@status other than at_rest and
+  /// end_time: stopped by a signal or a failure, killed, still running, or "unknown" in a format 1
+  /// file) or did not reach the window. They are always listed in study.csv, with
   /// their status and reached_window, and drawn as open markers.
   bool include_unfinished = false;
   /// The run's gravity, for the escape test of the last snapshot (AggregateMetrics::escaping_grains);
@@ -94,7 +94,7 @@ struct StudyOptions {
 /// Gathers run files (each argument a run file, or a folder searched recursively for *.h5 run
 /// files) into the study table (study.csv, study.txt), the fits (study_fits.csv), the <E_c>(t)
 /// curves (study_kinetic_energy.csv) and the paper's panels; returns the files written. Throws
-/// std::runtime_error when no run file is found, or none that ended at rest in the window (unless
+/// std::runtime_error when no run file is found, or none that ended at rest or at its end time in the window (unless
 /// include_unfinished); study.csv is written first all the same.
 std::vector<std::filesystem::path> post_process_study(const std::vector<std::filesystem::path>& inputs,
                                                       const StudyOptions& options);

@@ -111,12 +111,15 @@ void add_energy_curve(const RunSeries& series, double stable_after, StudyRun& r)
   if (r.at_rest) r.rest_time = series.time.back();
 }
 
-/// Whether the run takes part in the fits and plots; a run that did not end at rest or did not
-/// reach the window is added to `left_out` with the reason, and warned about.
+/// Whether the run takes part in the fits and plots: it ran to its end (at rest, or at its end
+/// time: the paper's runs, too, ran to a fixed time past the window) and reached the window. A
+/// run cut short (a signal, a failure, still running) or short of the window is added to
+/// `left_out` with the reason, and warned about.
 void decide_inclusion(const StudyOptions& options, StudyRun& r, std::vector<std::string>& left_out) {
-  r.included = (r.at_rest && r.reached_window) || options.include_unfinished;
-  if (r.at_rest && r.reached_window) return;
-  std::string why = !r.at_rest ? "did not end at rest (status " + r.status + ")" : "";
+  const bool ran_to_end = r.at_rest || r.status == "end_time";
+  r.included = (ran_to_end && r.reached_window) || options.include_unfinished;
+  if (ran_to_end && r.reached_window) return;
+  std::string why = !ran_to_end ? "did not end at rest or at its end time (status " + r.status + ")" : "";
   if (!r.reached_window) {
     why += (why.empty() ? "" : " and ") + std::string("did not reach the window t >= ") +
            parameter_text(options.stable_after) + " s (ended at t = " + significant(r.end_time) +

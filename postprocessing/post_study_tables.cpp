@@ -107,8 +107,9 @@ std::vector<std::pair<std::string, double>> fitted_series(const std::vector<Stud
 void require_included_runs(const StudyRuns& study, const StudyOptions& options) {
   const auto used = std::count_if(study.runs.begin(), study.runs.end(), [](const StudyRun& r) { return r.included; });
   if (used != 0) return;
-  std::string message = "rubble post --study: no run file with snapshots that ended at rest in the window t >= " +
-                        parameter_text(options.stable_after) + " s found in the given paths";
+  std::string message =
+      "rubble post --study: no run file with snapshots that ended at rest or at its end time in the window t >= " +
+      parameter_text(options.stable_after) + " s found in the given paths";
   if (!study.left_out.empty()) {
     message += "; " + std::to_string(study.left_out.size()) + " left out:";
     for (const std::string& run : study.left_out) message += " " + run;
@@ -202,8 +203,9 @@ fs::path write_study_text(const fs::path& out, const std::vector<StudyRun>& stud
   std::array<char, 512> line{};
   std::snprintf(line.data(), line.size(),
                 "Window: t >= %s s (%s min). Values: mean over the window's snapshots; runs marked * did not "
-                "reach the window (final snapshot shown), ! did not end at rest; both are left out of the fits "
-                "and plots unless --include-unfinished.\n",
+                "reach the window (final snapshot shown), ! were cut short (neither at rest nor at their end "
+                "time); both are left out of the fits and plots unless --include-unfinished. rest_min -: the "
+                "run did not stop at rest.\n",
                 parameter_text(options.stable_after).c_str(), parameter_text(options.stable_after / 60.0).c_str());
   text << line.data();
   std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n", "shape",
@@ -211,7 +213,8 @@ fs::path write_study_text(const fs::path& out, const std::vector<StudyRun>& stud
                 "overlap/d", "det", "esc");
   text << line.data();
   for (const StudyRun& r : study) {
-    const std::string flag = std::string(r.reached_window ? "" : "*") + (r.at_rest ? "" : "!");
+    const bool ran_to_end = r.at_rest || r.status == "end_time";
+    const std::string flag = std::string(r.reached_window ? "" : "*") + (ran_to_end ? "" : "!");
     std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
                   r.shape.c_str(), count_text(r.grains).c_str(), parameter_text(r.friction).c_str(), flag.c_str(),
                   significant(r.peak_time / 60.0).c_str(), r.at_rest ? significant(r.rest_time / 60.0).c_str() : "-",

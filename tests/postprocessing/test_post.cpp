@@ -51,10 +51,13 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
     chain.push_back(c);
   }
   const fs::path run = dir / "run.h5";
-  // The same run twice: once ended at rest, once stopped by a signal (in a subfolder).
+  // The same run three times: ended at rest, stopped by a signal, and run to its end time (in
+  // subfolders).
   fs::create_directories(dir / "stopped");
+  fs::create_directories(dir / "until_end");
   for (const auto& [path, status] :
-       {std::pair{run, RunStatus::at_rest}, std::pair{dir / "stopped" / "run.h5", RunStatus::interrupted}}) {
+       {std::pair{run, RunStatus::at_rest}, std::pair{dir / "stopped" / "run.h5", RunStatus::interrupted},
+        std::pair{dir / "until_end" / "run.h5", RunStatus::end_time}}) {
     const std::array<std::string_view, 1> stages{"all"};
     RunFile file = RunFile::create(path, model, "", stages);
     file.set_status(status);
@@ -92,9 +95,9 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   study.output_directory = dir / "study";
   study.plots = false;
   study.stable_after = 0.45;         // snapshots at t = 0.5 and 0.6
-  post_process_study({dir}, study);  // finds both run.h5, skips post/metrics.h5
+  post_process_study({dir}, study);  // finds the three run.h5, skips post/metrics.h5
   auto study_rows = read_csv(dir / "study" / "study.csv");
-  ASSERT_EQ(study_rows.size(), 3u);
+  ASSERT_EQ(study_rows.size(), 4u);
   const auto cell = [&](std::size_t row, const std::string& name) {
     const auto& header = study_rows[0];
     const auto at = std::find(header.begin(), header.end(), name);
@@ -120,13 +123,20 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   EXPECT_EQ(cell(2, "status"), "interrupted");
   EXPECT_EQ(cell(2, "included"), "0");
   EXPECT_EQ(cell(2, "rest_time"), "");
+  // The run to its end time, past the window, counts (the paper's runs ran to a fixed time); it
+  // has no rest time and the same window means as the run at rest.
+  EXPECT_EQ(cell(3, "run"), (dir / "until_end" / "run.h5").string());
+  EXPECT_EQ(cell(3, "status"), "end_time");
+  EXPECT_EQ(cell(3, "included"), "1");
+  EXPECT_EQ(cell(3, "rest_time"), "");
+  EXPECT_EQ(cell(3, "Z_max"), "1.600");
   EXPECT_TRUE(fs::exists(dir / "study" / "study.txt"));
   EXPECT_TRUE(fs::exists(dir / "study" / "study_fits.csv"));
   EXPECT_TRUE(fs::exists(dir / "study" / "study_kinetic_energy.csv"));
   study.include_unfinished = true;
   post_process_study({dir}, study);
   study_rows = read_csv(dir / "study" / "study.csv");
-  ASSERT_EQ(study_rows.size(), 3u);
+  ASSERT_EQ(study_rows.size(), 4u);
   EXPECT_EQ(cell(2, "included"), "1");
   // Only unfinished runs: nothing to plot, unless asked.
   study.include_unfinished = false;
