@@ -315,6 +315,50 @@ void add_contact_points(const ContactList& contacts, const ContactMetricsOptions
   }
 }
 
+/// Rattlers, iteratively: a grain with fewer than 2 force-bearing contacts with bodies that are not
+/// rattlers (walls never are) is a rattler, and removing it can leave a neighbour with fewer than
+/// 2, so the test is repeated until no grain fails it (what is left is the 2-core of the contact
+/// network: the backbone). A dangling chain of grains goes whole, not only its last grain.
+/// `neighbours[i]` counts the bodies in force-bearing contact with body i, walls included.
+std::vector<char> mark_rattlers(const Model& model, const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                                std::vector<int> neighbours) {
+  const std::size_t n = model.body_count();
+  // The pairs as adjacency lists (compressed rows): body i's neighbours in adjacent[start[i], start[i + 1]).
+  std::vector<std::size_t> start(n + 1, 0);
+  for (const auto& [a, b] : pairs) {
+    ++start[a + 1];
+    ++start[b + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+  std::vector<std::uint32_t> adjacent(start[n]);
+  std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+  for (const auto& [a, b] : pairs) {
+    adjacent[fill[a]++] = b;
+    adjacent[fill[b]++] = a;
+  }
+  std::vector<char> rattler(n, 0);
+  std::vector<std::size_t> removed;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (model.is_grain(i) && neighbours[i] < 2) {
+      rattler[i] = 1;
+      removed.push_back(i);
+    }
+  }
+  while (!removed.empty()) {
+    const std::size_t i = removed.back();
+    removed.pop_back();
+    for (std::size_t k = start[i]; k < start[i + 1]; ++k) {
+      const std::uint32_t j = adjacent[k];
+      if (rattler[j] != 0 || !model.is_grain(j)) continue;
+      if (--neighbours[j] < 2) {
+        rattler[j] = 1;
+        removed.push_back(j);
+      }
+    }
+  }
+  return rattler;
+}
+
 /// Pairs in contact, coordination number Z, rattlers, Z without rattlers and the inner sphere's Z.
 void add_coordination(const Model& model, const ContactList& contacts, const ContactMetricsOptions& options,
                       const std::vector<char>& inner, AggregateMetrics& m) {
@@ -335,11 +379,10 @@ void add_coordination(const Model& model, const ContactList& contacts, const Con
   }
   m.coordination = 2.0 * static_cast<double>(m.grain_contacts) / static_cast<double>(m.grains);
 
-  std::vector<char> rattler(n, 0);
+  const std::vector<char> rattler = mark_rattlers(model, pairs, all_neighbours);
   std::int64_t inner_contact_sum = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!model.is_grain(i)) continue;
-    rattler[i] = all_neighbours[i] < 2 ? 1 : 0;
     m.rattlers += rattler[i];
     if (inner[i] != 0) inner_contact_sum += grain_neighbours[i];
   }

@@ -109,14 +109,16 @@ struct AggregateMetrics {
       0.0;  ///< nu_I = sum V_i / (4/3 pi s_1 s_2 s_3): bulk packing fraction of the aggregate
 
   // --- contacts ---
-  std::int64_t contact_points = 0;             ///< contact points in the list (any impulse)
-  std::int64_t force_bearing_points = 0;       ///< points with r_n > threshold (grain-grain and grain-wall)
-  std::int64_t sliding_points = 0;             ///< force-bearing points whose status is sliding
-  double sliding_fraction = 0.0;               ///< sliding_points / force_bearing_points (0 if none)
-  std::int64_t grain_contacts = 0;             ///< N_c: grain pairs touching through >= 1 force-bearing point
-  std::int64_t wall_contacts = 0;              ///< grain-wall pairs touching through >= 1 force-bearing point
-  double coordination = 0.0;                   ///< Z = 2 N_c / N_p
-  std::int64_t rattlers = 0;                   ///< grains with fewer than 2 force-bearing contacts (walls count)
+  std::int64_t contact_points = 0;        ///< contact points in the list (any impulse)
+  std::int64_t force_bearing_points = 0;  ///< points with r_n > threshold (grain-grain and grain-wall)
+  std::int64_t sliding_points = 0;        ///< force-bearing points whose status is sliding
+  double sliding_fraction = 0.0;          ///< sliding_points / force_bearing_points (0 if none)
+  std::int64_t grain_contacts = 0;        ///< N_c: grain pairs touching through >= 1 force-bearing point
+  std::int64_t wall_contacts = 0;         ///< grain-wall pairs touching through >= 1 force-bearing point
+  double coordination = 0.0;              ///< Z = 2 N_c / N_p
+  /// Grains with fewer than 2 force-bearing contacts with bodies that are not rattlers (walls
+  /// count), found iteratively until none is left
+  std::int64_t rattlers = 0;
   double coordination_without_rattlers = 0.0;  ///< Z' = 2 N_c' / N_p' over the non-rattlers
   double inner_coordination = 0.0;             ///< mean grain-grain contacts of the inner grains (bulk Z)
   double mean_normal_impulse = 0.0;            ///< N s, mean r_n over force-bearing points

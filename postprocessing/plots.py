@@ -123,7 +123,7 @@ def run_plots(directory, scene="aggregate"):
     label = label.replace("t (", "simulated time (")
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(t, metrics.get("coordination", []), "o-", ms=3, label="all grains")
-    ax.plot(t, metrics.get("coordination_without_rattlers", []), "s-", ms=3, label="without rattlers (< 2 contacts)")
+    ax.plot(t, metrics.get("coordination_without_rattlers", []), "s-", ms=3, label="without rattlers (< 2 contacts, iterated)")
     if aggregate:
         ax.plot(t, metrics.get("inner_coordination", []), "^-", ms=3, label="grains of the inner sphere")
     ax.set_xlabel(label)

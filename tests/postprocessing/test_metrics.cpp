@@ -106,7 +106,8 @@ TEST(Metrics, FaceCentredCubicLattice) {
 
 TEST(Metrics, ChainOfGrains) {
   // N touching spheres in a line: N - 1 contacts, Z = 2 - 2 / N. The two ends have one contact:
-  // rattlers; without them, N - 2 grains share N - 3 contacts. D_max = N d and nu = 1 / N^2.
+  // rattlers; once they are gone the next two have one, and so on: the whole chain is rattlers
+  // (no backbone, Z' = 0). D_max = N d and nu = 1 / N^2.
   const int n = 7;
   const double d = 2.0;
   std::vector<Vec3> centres;
@@ -114,8 +115,8 @@ TEST(Metrics, ChainOfGrains) {
   const Packing p = spheres_at(centres, 0.5 * d);
   const AggregateMetrics m = compute_metrics(p.model, p.state, touching_pairs(centres, d));
   EXPECT_DOUBLE_EQ(m.coordination, 2.0 - 2.0 / n);
-  EXPECT_EQ(m.rattlers, 2);
-  EXPECT_DOUBLE_EQ(m.coordination_without_rattlers, 2.0 * (n - 3) / (n - 2));
+  EXPECT_EQ(m.rattlers, n);
+  EXPECT_DOUBLE_EQ(m.coordination_without_rattlers, 0.0);
   EXPECT_NEAR(m.aggregate_diameter, n * d, 1e-12);
   EXPECT_NEAR(m.packing_fraction, 1.0 / (n * n), 1e-12);
   EXPECT_EQ(m.grain_contacts, n - 1);
@@ -123,13 +124,16 @@ TEST(Metrics, ChainOfGrains) {
 }
 
 TEST(Metrics, WallContactsAreNotGrainContactsButHoldRattlers) {
-  // The chain again, its first grain resting on a plane wall: Z is unchanged (the wall is no
-  // grain), the wall contact is counted apart, and the first grain, now with 2 force-bearing
-  // contacts, is no rattler any more.
+  // A row of N touching spheres lying on a plane wall, each pressed on it: Z is that of the chain
+  // (the wall is no grain), the wall contacts are counted apart, and every grain, with the wall
+  // and at least one neighbour, has 2 force-bearing contacts: no rattler (the chain alone, above,
+  // is all rattlers). A grain set on top of the second one, touching it only, is one, and takes
+  // no other grain with it: the one below keeps the wall and its row neighbours.
   const int n = 5;
   const double d = 1.0;
   std::vector<Vec3> centres;
-  for (int i = 0; i < n; ++i) centres.emplace_back(0.0, 0.0, 0.5 * d + i * d);
+  for (int i = 0; i < n; ++i) centres.emplace_back(i * d, 0.0, 0.5 * d);
+  centres.emplace_back(d, 0.0, 1.5 * d);
   Packing p = spheres_at(centres, 0.5 * d);
   ContactList contacts = touching_pairs(centres, d);
   const int wall = add_plane_wall(p.model, Vec3::UnitZ(), 0);
@@ -137,19 +141,43 @@ TEST(Metrics, WallContactsAreNotGrainContactsButHoldRattlers) {
   p.state.orientation.push_back(Quat::Identity());
   p.state.velocity.push_back(Vec3::Zero());
   p.state.angular_velocity.push_back(Vec3::Zero());
-  Contact floor;
-  floor.id.body_a = static_cast<std::uint32_t>(wall);
-  floor.id.body_b = 0;
-  floor.frame = frame_from_normal(Vec3::UnitZ());
-  floor.impulse = Vec3(3.0, 0.0, 0.0);
-  contacts.push_back(floor);
+  for (int i = 0; i < n; ++i) {
+    Contact floor;
+    floor.id.body_a = static_cast<std::uint32_t>(wall);
+    floor.id.body_b = static_cast<std::uint32_t>(i);
+    floor.frame = frame_from_normal(Vec3::UnitZ());
+    floor.impulse = Vec3(3.0, 0.0, 0.0);
+    contacts.push_back(floor);
+  }
   const AggregateMetrics m = compute_metrics(p.model, p.state, contacts);
-  EXPECT_EQ(m.grains, n);
-  EXPECT_DOUBLE_EQ(m.coordination, 2.0 * (n - 1) / n);
-  EXPECT_EQ(m.wall_contacts, 1);
+  EXPECT_EQ(m.grains, n + 1);
+  EXPECT_EQ(m.grain_contacts, n);  // the row's n - 1 and the top grain's one
+  EXPECT_DOUBLE_EQ(m.coordination, 2.0 * n / (n + 1));
+  EXPECT_EQ(m.wall_contacts, n);
   EXPECT_EQ(m.rattlers, 1);  // only the top grain
-  EXPECT_DOUBLE_EQ(m.coordination_without_rattlers, 2.0 * (n - 2) / (n - 1));
-  EXPECT_NEAR(m.aggregate_diameter, n * d, 1e-12);  // the infinite wall is no part of D_max
+  EXPECT_DOUBLE_EQ(m.coordination_without_rattlers, 2.0 * (n - 1) / n);
+  // The infinite wall is no part of D_max: the centre of mass is (11/6, 0, 2/3) d, the farthest
+  // grain the row's last, (4, 0, 1/2) d, at sqrt(13^2 + 1) / 6 d.
+  EXPECT_NEAR(m.aggregate_diameter, std::sqrt(170.0) / 3.0 * d + d, 1e-12);
+}
+
+TEST(Metrics, RattlersAreRemovedUntilNoneIsLeft) {
+  // A tetrahedron of 4 mutually touching spheres (6 contacts, 3 a grain) with a chain of 2 more
+  // sticking out of its first vertex, away from the others. One pass would find only the chain's
+  // tip (1 contact) and keep the middle grain (2); once the tip is gone the middle grain has 1
+  // and goes too. What is left is the tetrahedron: Z' = 2 * 6 / 4 = 3, with Z = 2 * 8 / 6.
+  const double d = 1.0;
+  std::vector<Vec3> centres = {Vec3(1, 1, 1), Vec3(1, -1, -1), Vec3(-1, 1, -1), Vec3(-1, -1, 1)};
+  for (Vec3& c : centres) c *= d / std::sqrt(8.0);  // edge |(0, 2, 2)| / sqrt(8) = d
+  const Vec3 out = centres[0].normalized();         // from the tetrahedron's centre (the origin)
+  centres.push_back(centres[0] + d * out);
+  centres.push_back(centres[0] + 2.0 * d * out);
+  const Packing p = spheres_at(centres, 0.5 * d);
+  const AggregateMetrics m = compute_metrics(p.model, p.state, touching_pairs(centres, d));
+  EXPECT_EQ(m.grain_contacts, 8);
+  EXPECT_DOUBLE_EQ(m.coordination, 2.0 * 8 / 6);
+  EXPECT_EQ(m.rattlers, 2);
+  EXPECT_DOUBLE_EQ(m.coordination_without_rattlers, 3.0);
 }
 
 TEST(Metrics, SeveralPointsOfOnePairAreOneContactAndZeroImpulsesDoNotCount) {
