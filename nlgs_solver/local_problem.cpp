@@ -428,8 +428,8 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
       // attempt may cost what the remaining sweeps would, or up to affordable_polish_work.
       const double left = checks.sweeps_left(options.tolerance);
       const double budget = options.max_iterations - solution.iterations;
-      const double sweeps_work = left <= budget ? left * sweep_work(problem)
-                                                : std::max(budget * sweep_work(problem), affordable_polish_work);
+      const double sweeps_work =
+          left <= budget ? left * sweep_work(problem) : std::max(budget * sweep_work(problem), affordable_polish_work);
       if (newton_work > 0.0 && !polish_pays(newton_work, sweeps_work)) continue;
       ++solution.polish_attempts;
       const PolishResult polish = newton_polish(problem, options, solution.r, solution.u, solution.error, sweeps_work);
