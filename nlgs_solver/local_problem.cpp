@@ -15,21 +15,6 @@
 namespace rubble {
 namespace {
 
-/// u = W r + q.
-std::vector<double> velocities(const LocalProblem& p, const std::vector<double>& r) {
-  std::vector<double> u(p.q);
-  for (int row = 0; row < p.W.rows; ++row) {
-    double sum = 0.0;
-    for (int k = p.W.row_start[static_cast<std::size_t>(row)]; k < p.W.row_start[static_cast<std::size_t>(row) + 1];
-         ++k) {
-      sum +=
-          p.W.value[static_cast<std::size_t>(k)] * r[static_cast<std::size_t>(p.W.column[static_cast<std::size_t>(k)])];
-    }
-    u[static_cast<std::size_t>(row)] += sum;
-  }
-  return u;
-}
-
 /// W explicit: u_k is recomputed from its three rows, so applying a change needs no work.
 struct ExplicitProblem {
   const LocalProblem& p;
@@ -278,7 +263,7 @@ PolishResult newton_polish(const LocalProblem& p, const LocalProblemOptions& opt
     }
     for (int halving = 0; halving < (backtrack ? 30 : 1); ++halving, t *= 0.5) {
       for (std::size_t i = 0; i < m; ++i) trial_r[i] = r[i] + t * step[static_cast<Eigen::Index>(i)];
-      trial_u = velocities(p, trial_r);
+      trial_u = local_velocities(p, trial_r);
       const double trial_psi = 0.5 * alart_curnier(p, rho, trial_r, trial_u, scratch, nullptr);
       if (!std::isfinite(trial_psi)) continue;
       if (trial_psi <= psi + 1e-4 * t * slope) {
@@ -317,8 +302,22 @@ int polish_solution(const LocalProblem& problem, const LocalProblemOptions& opti
 
 std::vector<double> alart_curnier_function(const LocalProblem& problem, const std::vector<double>& r) {
   std::vector<double> F;
-  alart_curnier(problem, normal_scalings(problem), r, velocities(problem, r), F, nullptr);
+  alart_curnier(problem, normal_scalings(problem), r, local_velocities(problem, r), F, nullptr);
   return F;
+}
+
+std::vector<double> local_velocities(const LocalProblem& p, const std::vector<double>& r) {
+  std::vector<double> u(p.q);
+  for (int row = 0; row < p.W.rows; ++row) {
+    double sum = 0.0;
+    for (int k = p.W.row_start[static_cast<std::size_t>(row)]; k < p.W.row_start[static_cast<std::size_t>(row) + 1];
+         ++k) {
+      sum +=
+          p.W.value[static_cast<std::size_t>(k)] * r[static_cast<std::size_t>(p.W.column[static_cast<std::size_t>(k)])];
+    }
+    u[static_cast<std::size_t>(row)] += sum;
+  }
+  return u;
 }
 
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u) {
@@ -415,7 +414,7 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
     const bool polish_due = options.polish == PolishMethod::newton && solution.iterations == next_polish;
     if (!checks.due(solution.iterations, options.max_iterations) && !polish_due) continue;
     flatten();
-    solution.u = velocities(problem, solution.r);
+    solution.u = local_velocities(problem, solution.r);
     solution.error = fclib_error(problem, solution.r, solution.u);
     checks.record(solution.iterations, solution.error, options.tolerance);
     if (solution.error <= options.tolerance) {

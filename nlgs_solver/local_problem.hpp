@@ -74,6 +74,9 @@ struct LocalProblemSolution {
 int polish_solution(const LocalProblem& problem, const LocalProblemOptions& options, std::vector<double>& r,
                     std::vector<double>& u, double& error);
 
+/// The local velocities u = W r + q of impulses r (3 nc each).
+std::vector<double> local_velocities(const LocalProblem& problem, const std::vector<double>& r);
+
 /// The FCLib error measure of (r, u) for the problem (Acary et al. 2014).
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 

@@ -71,9 +71,13 @@ std::vector<std::pair<std::size_t, Mat3>> coupled_blocks(const PolishView& view,
   return merged;
 }
 
-/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller. With `scaled`
-/// false, W itself (every d_l taken as 1): the symmetric Delassus operator in impulses.
-ScaledProblem assemble_scaled_problem(const PolishView& view, bool scaled = true) {
+/// Which unknowns the assembled problem is in: the polish's scaled impulses r~ = d r, or the
+/// impulses r themselves (every d taken as 1: W is then the symmetric Delassus operator).
+enum class Unknowns { scaled_impulses, impulses };
+
+/// W~, d and mu of the view's contacts (ScaledProblem); q is left to the caller.
+ScaledProblem assemble_problem(const PolishView& view, Unknowns unknowns) {
+  const bool scaled = unknowns == Unknowns::scaled_impulses;
   const std::size_t n = view.point.size();
   ScaledProblem out;
   out.normal_compliance.resize(n);
@@ -122,7 +126,7 @@ std::vector<double> free_velocities(const SparseMatrix& W, const std::vector<dou
 LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<const std::size_t> order) {
   PolishView view{compact, std::vector<std::size_t>(order.size())};
   for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
-  LocalProblem problem = assemble_scaled_problem(view, false).problem;
+  LocalProblem problem = assemble_problem(view, Unknowns::impulses).problem;
   problem.q.resize(3 * view.point.size());
   for (std::size_t k = 0; k < view.point.size(); ++k) {
     const Vec3 u = compact.local_velocity(view.point[k]);  // the free velocities: no impulse applied yet
@@ -136,7 +140,7 @@ PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const st
   PolishView view{compact, std::vector<std::size_t>(order.size())};
   for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
   const std::size_t n = view.point.size();
-  ScaledProblem scaled = assemble_scaled_problem(view);
+  ScaledProblem scaled = assemble_problem(view, Unknowns::scaled_impulses);
   LocalProblem& problem = scaled.problem;
   std::vector<double> r(3 * n), u(3 * n);
   for (std::size_t k = 0; k < n; ++k) {

@@ -89,15 +89,7 @@ void solve_with_siconos(FrictionContactProblem* siconos, const rubble::LocalProb
   out.own_error = options->dparam[SICONOS_DPARAM_RESIDU];
   solver_options_delete(options);
   // Judged like rubble's: the FCLib measure of r, with u recomputed as W r + q.
-  std::vector<double> w = problem.q;
-  const rubble::SparseMatrix& W = problem.W;
-  for (int row = 0; row < W.rows; ++row) {
-    for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1]; ++e) {
-      w[static_cast<std::size_t>(row)] +=
-          W.value[static_cast<std::size_t>(e)] * r[static_cast<std::size_t>(W.column[static_cast<std::size_t>(e)])];
-    }
-  }
-  out.error = rubble::fclib_error(problem, r, w);
+  out.error = rubble::fclib_error(problem, r, rubble::local_velocities(problem, r));
   out.converged = out.error <= tolerance;
 }
 
