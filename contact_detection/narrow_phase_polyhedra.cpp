@@ -319,6 +319,17 @@ void contacts_on_common_plane(const PolyhedronPair& pair, std::uint32_t body_a, 
   }
 }
 
+/// The common plane of the pair placed in `scratch.pair` (bodies a, b), its normal into
+/// `common_normal` (the warm-start memory), and its contact points when the plane is complete and
+/// its gap within the alert distance.
+void collide_placed_pair(std::uint32_t a, std::uint32_t b, double alert_distance, const Vec3* previous_common_normal,
+                         ContactList& contacts, Vec3& common_normal, PolyhedronScratch& scratch) {
+  const CommonPlane plane = find_common_plane(scratch.pair, previous_common_normal, alert_distance);
+  common_normal = plane.normal;
+  if (!plane.complete || plane.gap >= alert_distance) return;
+  contacts_on_common_plane(scratch.pair, a, b, plane.normal, plane.gap, alert_distance, scratch.plane, contacts);
+}
+
 }  // namespace
 
 void collide_polyhedron_polyhedron(const Model& model, const State& state, std::uint32_t a, std::uint32_t b,
@@ -328,10 +339,7 @@ void collide_polyhedron_polyhedron(const Model& model, const State& state, std::
   const double centre_distance = (state.position[b] - state.position[a]).norm();
   if (centre_distance - model.bounding_radius[a] - model.bounding_radius[b] >= alert_distance) return;
   place_pair(placed(model, state, a), placed(model, state, b), scratch.pair);
-  const CommonPlane plane = find_common_plane(scratch.pair, previous_common_normal, alert_distance);
-  common_normal = plane.normal;
-  if (!plane.complete || plane.gap >= alert_distance) return;
-  contacts_on_common_plane(scratch.pair, a, b, plane.normal, plane.gap, alert_distance, scratch.plane, contacts);
+  collide_placed_pair(a, b, alert_distance, previous_common_normal, contacts, common_normal, scratch);
 }
 
 void collide_polyhedron_polyhedron(const Model& model, const State& state, std::uint32_t a, std::uint32_t b,
@@ -352,10 +360,7 @@ void collide_box_polyhedron(const Model& model, const State& state, std::uint32_
   place_pair(pa, placed(model, state, grain), scratch.pair);
   // The warm-start memory is keyed by the ordered pair; the dispatcher passes (wall, grain) and
   // stores the normal as returned here (from the wall to the grain).
-  const CommonPlane plane = find_common_plane(scratch.pair, previous_common_normal, alert_distance);
-  common_normal = plane.normal;
-  if (!plane.complete || plane.gap >= alert_distance) return;
-  contacts_on_common_plane(scratch.pair, wall, grain, plane.normal, plane.gap, alert_distance, scratch.plane, contacts);
+  collide_placed_pair(wall, grain, alert_distance, previous_common_normal, contacts, common_normal, scratch);
 }
 
 void collide_box_polyhedron(const Model& model, const State& state, std::uint32_t wall, std::uint32_t grain,

@@ -144,50 +144,34 @@ int narrow(int pairs) {
     ++rounds;
   } while (seconds(t0) < 2.0);
   const double warm = rounds * pairs / (thread_cpu_seconds() - cpu0);
-  // Common plane alone (no contact points), cold and warm.
-  t0 = Clock::now();
-  cpu0 = thread_cpu_seconds();
-  rounds = 0;
+  // Common plane alone (no contact points), cold (no previous normal) and warm.
   double sink = 0.0;
-  do {
-    for (int k = 0; k < pairs; ++k) {
-      const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
-      const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
-      const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      place_pair(pa, pb, scratch.pair);
-      const CommonPlane plane = find_common_plane(scratch.pair, nullptr, alert);
-      sink += plane.gap;
-      if (rounds == 0) {
-        for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
-        hash_bytes(hash_plane, plane.gap);
-        hash_bytes(hash_plane, plane.complete);
-        hash_bytes(hash_plane, plane.source);
+  const auto planes_per_second = [&](bool warm_start) {
+    const auto start = Clock::now();
+    const double cpu_start = thread_cpu_seconds();
+    int loops = 0;
+    do {
+      for (int k = 0; k < pairs; ++k) {
+        const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
+        const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
+        const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
+        place_pair(pa, pb, scratch.pair);
+        const Vec3* previous = warm_start ? &normals[static_cast<std::size_t>(k)] : nullptr;
+        const CommonPlane plane = find_common_plane(scratch.pair, previous, alert);
+        sink += plane.gap;
+        if (loops == 0) {
+          for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
+          hash_bytes(hash_plane, plane.gap);
+          hash_bytes(hash_plane, plane.complete);
+          hash_bytes(hash_plane, plane.source);
+        }
       }
-    }
-    ++rounds;
-  } while (seconds(t0) < 2.0);
-  const double plane_cold = rounds * pairs / (thread_cpu_seconds() - cpu0);
-  t0 = Clock::now();
-  cpu0 = thread_cpu_seconds();
-  rounds = 0;
-  do {
-    for (int k = 0; k < pairs; ++k) {
-      const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
-      const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
-      const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-      place_pair(pa, pb, scratch.pair);
-      const CommonPlane plane = find_common_plane(scratch.pair, &normals[static_cast<std::size_t>(k)], alert);
-      sink += plane.gap;
-      if (rounds == 0) {
-        for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
-        hash_bytes(hash_plane, plane.gap);
-        hash_bytes(hash_plane, plane.complete);
-        hash_bytes(hash_plane, plane.source);
-      }
-    }
-    ++rounds;
-  } while (seconds(t0) < 2.0);
-  const double plane_warm = rounds * pairs / (thread_cpu_seconds() - cpu0);
+      ++loops;
+    } while (seconds(start) < 2.0);
+    return loops * pairs / (thread_cpu_seconds() - cpu_start);
+  };
+  const double plane_cold = planes_per_second(false);
+  const double plane_warm = planes_per_second(true);
   std::printf("narrow phase, %d pairs near contact (gap in [-0.02, 0.05] d, alert 0.05 d), one thread,\n", pairs);
   std::printf("pairs per CPU second of the thread (CLOCK_THREAD_CPUTIME_ID), each loop run for 2 s of wall time\n");
   std::printf("  collide_polyhedron_polyhedron  cold %.0f pairs/s   warm %.0f pairs/s   (%.2f contact points/pair)\n",
