@@ -59,24 +59,28 @@ Quat random_rotation(std::mt19937_64& rng) {
   return Quat(normal(rng), normal(rng), normal(rng), normal(rng)).normalized();
 }
 
-/// Pairs of random polyhedra (d = 1, 10-70 vertices) at poses near contact: B is moved along a
-/// random direction until the common-plane gap is uniform in [-0.02, 0.05] d (the pairs a
-/// broad phase passes on in a dense pack). Throughput of collide_polyhedron_polyhedron, cold
-/// (normal from the line of centres) and warm (last step's normal after a small motion).
-int narrow(int pairs) {
-  Model model;
+/// Pairs of random polyhedra (d = 1, 10-70 vertices), pair k = bodies (2k, 2k+1), at poses near
+/// contact: B is moved along a random direction until the common-plane gap is uniform in
+/// [-0.02, 0.05] d (the pairs a broad phase passes on in a dense pack).
+struct PairsNearContact {
+  Model model;  ///< the polyhedra
+  State state;  ///< their poses
+};
+
+PairsNearContact pairs_near_contact(int pairs, std::mt19937_64& rng) {
+  PairsNearContact out;
+  Model& model = out.model;
+  State& state = out.state;
   model.materials.push_back({"rock", 1000.0});
   model.contact_laws.reset(1, ContactLaw{});
   RandomPolyhedronOptions options;
   for (int k = 0; k < 2 * pairs; ++k)
     add_polyhedron_grain(model, generate_random_polyhedron(options, static_cast<std::uint64_t>(k % 256)), 0);
-  State state;
   state.resize(model.body_count());
-  std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::normal_distribution<double> normal;
   for (int k = 0; k < pairs; ++k) {
-    const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
+    const std::size_t a = 2 * static_cast<std::size_t>(k), b = a + 1;
     state.position[a] = Vec3(10.0 * k, 0, 0);
     state.orientation[a] = random_rotation(rng);
     state.orientation[b] = random_rotation(rng);
@@ -93,94 +97,111 @@ int narrow(int pairs) {
     }
     state.position[b] = state.position[a] + hi * direction;
   }
-  const double alert = 0.05;
-  std::vector<Vec3> normals(static_cast<std::size_t>(pairs));
-  std::size_t contacts = 0;
+  return out;
+}
+
+/// What one timed loop over the pairs measured.
+struct PairRate {
+  double pairs_per_second = 0.0;                 ///< per CPU second of the thread
+  double contacts_per_pair = 0.0;                ///< contact points found (collide loops only)
+  std::uint64_t hash = 14695981039346656037ull;  ///< of the first round's results
+};
+
+/// collide_polyhedron_polyhedron over every pair for 2 s of wall time: cold (normal from the line
+/// of centres; the common normals are written to `normals`) or warm (from `normals`).
+PairRate collide_rate(const PairsNearContact& p, int pairs, double alert, bool warm, std::vector<Vec3>& normals,
+                      PolyhedronScratch& scratch) {
+  PairRate rate;
   ContactList list;
-  PolyhedronScratch scratch;  // one per thread, reused from pair to pair as in detect_contacts
-  std::uint64_t hash_cold = 14695981039346656037ull, hash_warm = hash_cold, hash_plane = hash_cold;
-  // Cold.
-  auto t0 = Clock::now();
-  double cpu0 = thread_cpu_seconds();
+  std::size_t contacts = 0;
+  Vec3 out;
+  const auto start = Clock::now();
+  const double cpu_start = thread_cpu_seconds();
   int rounds = 0;
   do {
     for (int k = 0; k < pairs; ++k) {
       list.clear();
-      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
-                                    static_cast<std::uint32_t>(2 * k + 1), alert, nullptr, list,
-                                    normals[static_cast<std::size_t>(k)], scratch);
+      Vec3& normal = warm ? out : normals[static_cast<std::size_t>(k)];
+      collide_polyhedron_polyhedron(p.model, p.state, static_cast<std::uint32_t>(2 * k),
+                                    static_cast<std::uint32_t>(2 * k + 1), alert,
+                                    warm ? &normals[static_cast<std::size_t>(k)] : nullptr, list, normal, scratch);
       contacts += list.size();
       if (rounds == 0) {
-        for (const Contact& c : list) hash_contact(hash_cold, c);
-        for (int i = 0; i < 3; ++i) hash_bytes(hash_cold, normals[static_cast<std::size_t>(k)][i]);
+        for (const Contact& c : list) hash_contact(rate.hash, c);
+        for (int i = 0; i < 3; ++i) hash_bytes(rate.hash, normal[i]);
       }
     }
     ++rounds;
-  } while (seconds(t0) < 2.0);
-  const double cold = rounds * pairs / (thread_cpu_seconds() - cpu0);
-  const double contacts_per_pair = static_cast<double>(contacts) / (rounds * pairs);
-  // Warm: a small motion (1e-3 d, 1e-3 rad), then the remembered normal.
-  for (int k = 0; k < pairs; ++k) {
-    const auto b = static_cast<std::size_t>(2 * k + 1);
-    state.position[b] += 1e-3 * Vec3(normal(rng), normal(rng), normal(rng));
-    state.orientation[b] =
-        (quaternion_exp(1e-3 * Vec3(normal(rng), normal(rng), normal(rng))) * state.orientation[b]).normalized();
-  }
-  t0 = Clock::now();
-  cpu0 = thread_cpu_seconds();
-  rounds = 0;
-  Vec3 out;
+  } while (seconds(start) < 2.0);
+  rate.pairs_per_second = rounds * pairs / (thread_cpu_seconds() - cpu_start);
+  rate.contacts_per_pair = static_cast<double>(contacts) / (rounds * pairs);
+  return rate;
+}
+
+/// find_common_plane alone (no contact points) over every pair for 2 s of wall time, cold or warm
+/// (from `normals`), its hash going on from `hash`; adds the gaps to `sink` so that the work is not
+/// optimised away.
+PairRate plane_rate(const PairsNearContact& p, int pairs, double alert, bool warm, const std::vector<Vec3>& normals,
+                    PolyhedronScratch& scratch, std::uint64_t hash, double& sink) {
+  PairRate rate;
+  rate.hash = hash;
+  const auto start = Clock::now();
+  const double cpu_start = thread_cpu_seconds();
+  int rounds = 0;
   do {
     for (int k = 0; k < pairs; ++k) {
-      list.clear();
-      collide_polyhedron_polyhedron(model, state, static_cast<std::uint32_t>(2 * k),
-                                    static_cast<std::uint32_t>(2 * k + 1), alert, &normals[static_cast<std::size_t>(k)],
-                                    list, out, scratch);
+      const std::size_t a = 2 * static_cast<std::size_t>(k), b = a + 1;
+      const PolyhedronInWorld pa{&p.model.polyhedra[a], p.state.position[a], p.state.orientation[a].toRotationMatrix()};
+      const PolyhedronInWorld pb{&p.model.polyhedra[b], p.state.position[b], p.state.orientation[b].toRotationMatrix()};
+      place_pair(pa, pb, scratch.pair);
+      const Vec3* previous = warm ? &normals[static_cast<std::size_t>(k)] : nullptr;
+      const CommonPlane plane = find_common_plane(scratch.pair, previous, alert);
+      sink += plane.gap;
       if (rounds == 0) {
-        for (const Contact& c : list) hash_contact(hash_warm, c);
-        for (int i = 0; i < 3; ++i) hash_bytes(hash_warm, out[i]);
+        for (int i = 0; i < 3; ++i) hash_bytes(rate.hash, plane.normal[i]);
+        hash_bytes(rate.hash, plane.gap);
+        hash_bytes(rate.hash, plane.complete);
+        hash_bytes(rate.hash, plane.source);
       }
     }
     ++rounds;
-  } while (seconds(t0) < 2.0);
-  const double warm = rounds * pairs / (thread_cpu_seconds() - cpu0);
-  // Common plane alone (no contact points), cold (no previous normal) and warm.
+  } while (seconds(start) < 2.0);
+  rate.pairs_per_second = rounds * pairs / (thread_cpu_seconds() - cpu_start);
+  return rate;
+}
+
+/// Throughput of collide_polyhedron_polyhedron and of find_common_plane alone on pairs near
+/// contact, cold (normal from the line of centres) and warm (last step's normal after a small
+/// motion), with hashes of the results.
+int narrow(int pairs) {
+  std::mt19937_64 rng(3);
+  PairsNearContact p = pairs_near_contact(pairs, rng);
+  const double alert = 0.05;
+  std::vector<Vec3> normals(static_cast<std::size_t>(pairs));
+  PolyhedronScratch scratch;  // one per thread, reused from pair to pair as in detect_contacts
+  const PairRate cold = collide_rate(p, pairs, alert, false, normals, scratch);
+  // Warm: a small motion (1e-3 d, 1e-3 rad), then the remembered normal.
+  std::normal_distribution<double> normal;
+  for (int k = 0; k < pairs; ++k) {
+    const std::size_t b = 2 * static_cast<std::size_t>(k) + 1;
+    p.state.position[b] += 1e-3 * Vec3(normal(rng), normal(rng), normal(rng));
+    p.state.orientation[b] =
+        (quaternion_exp(1e-3 * Vec3(normal(rng), normal(rng), normal(rng))) * p.state.orientation[b]).normalized();
+  }
+  const PairRate warm = collide_rate(p, pairs, alert, true, normals, scratch);
   double sink = 0.0;
-  const auto planes_per_second = [&](bool warm_start) {
-    const auto start = Clock::now();
-    const double cpu_start = thread_cpu_seconds();
-    int loops = 0;
-    do {
-      for (int k = 0; k < pairs; ++k) {
-        const auto a = static_cast<std::size_t>(2 * k), b = a + 1;
-        const PolyhedronInWorld pa{&model.polyhedra[a], state.position[a], state.orientation[a].toRotationMatrix()};
-        const PolyhedronInWorld pb{&model.polyhedra[b], state.position[b], state.orientation[b].toRotationMatrix()};
-        place_pair(pa, pb, scratch.pair);
-        const Vec3* previous = warm_start ? &normals[static_cast<std::size_t>(k)] : nullptr;
-        const CommonPlane plane = find_common_plane(scratch.pair, previous, alert);
-        sink += plane.gap;
-        if (loops == 0) {
-          for (int i = 0; i < 3; ++i) hash_bytes(hash_plane, plane.normal[i]);
-          hash_bytes(hash_plane, plane.gap);
-          hash_bytes(hash_plane, plane.complete);
-          hash_bytes(hash_plane, plane.source);
-        }
-      }
-      ++loops;
-    } while (seconds(start) < 2.0);
-    return loops * pairs / (thread_cpu_seconds() - cpu_start);
-  };
-  const double plane_cold = planes_per_second(false);
-  const double plane_warm = planes_per_second(true);
+  // One hash over both plane loops, cold then warm.
+  const PairRate plane_cold = plane_rate(p, pairs, alert, false, normals, scratch, PairRate{}.hash, sink);
+  const PairRate plane_warm = plane_rate(p, pairs, alert, true, normals, scratch, plane_cold.hash, sink);
   std::printf("narrow phase, %d pairs near contact (gap in [-0.02, 0.05] d, alert 0.05 d), one thread,\n", pairs);
   std::printf("pairs per CPU second of the thread (CLOCK_THREAD_CPUTIME_ID), each loop run for 2 s of wall time\n");
   std::printf("  collide_polyhedron_polyhedron  cold %.0f pairs/s   warm %.0f pairs/s   (%.2f contact points/pair)\n",
-              cold, warm, contacts_per_pair);
-  std::printf("  find_common_plane only         cold %.0f pairs/s   warm %.0f pairs/s   (checksum %.3g)\n", plane_cold,
-              plane_warm, sink);
+              cold.pairs_per_second, warm.pairs_per_second, cold.contacts_per_pair);
+  std::printf("  find_common_plane only         cold %.0f pairs/s   warm %.0f pairs/s   (checksum %.3g)\n",
+              plane_cold.pairs_per_second, plane_warm.pairs_per_second, sink);
   std::printf("  result hashes (first round): contacts+normals cold %016llx warm %016llx, planes %016llx\n",
-              static_cast<unsigned long long>(hash_cold), static_cast<unsigned long long>(hash_warm),
-              static_cast<unsigned long long>(hash_plane));
+              static_cast<unsigned long long>(cold.hash), static_cast<unsigned long long>(warm.hash),
+              static_cast<unsigned long long>(plane_warm.hash));
   return 0;
 }
 
@@ -198,6 +219,7 @@ int deposit(int grains, int steps) {
       {Vec3(-half, 0, 0), 0}, {Vec3(half, 0, 0), 0}, {Vec3(0, -half, 0), 0}, {Vec3(0, half, 0), 0}};
   const Vec3 normals[4] = {Vec3::UnitX(), -Vec3::UnitX(), Vec3::UnitY(), -Vec3::UnitY()};
   std::vector<int> wall_ids;
+  wall_ids.reserve(4);
   for (int k = 0; k < 4; ++k) wall_ids.push_back(add_plane_wall(model, normals[k], 0));
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -216,8 +238,9 @@ int deposit(int grains, int steps) {
   for (int k = 0; k < grains; ++k) {
     const int layer = k / (per_side * per_side), cell = k % (per_side * per_side);
     const auto b = static_cast<std::size_t>(ids[static_cast<std::size_t>(k)]);
-    state.position[b] = Vec3((cell % per_side - 0.5 * (per_side - 1)) * pitch,
-                             (cell / per_side - 0.5 * (per_side - 1)) * pitch, 0.06 + layer * pitch);
+    const int column = cell % per_side, row = cell / per_side;  // of the grid cell
+    state.position[b] =
+        Vec3((column - 0.5 * (per_side - 1)) * pitch, (row - 0.5 * (per_side - 1)) * pitch, 0.06 + layer * pitch);
     state.orientation[b] = random_rotation(rng);
   }
   StepOptions step_options;
