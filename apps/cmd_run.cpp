@@ -249,9 +249,10 @@ InputProblem open_run(const RunArguments& args, Scene& scene, RunControl& contro
 }
 
 /// --from: the bodies' state from the saved run, everything else from the scene
-/// (docs/checkpoints.md, "Branching"). Sets `description` to the state it starts from.
+/// (docs/checkpoints.md, "Branching"). Sets `description` to the state it starts from and
+/// `warm_start` to a checkpoint's contacts rescaled to the scene's dt (branch_warm_start).
 InputProblem branch_from_saved_state(const RunArguments& args, const std::string& scene_source, Scene& scene,
-                                     std::string& description) {
+                                     std::string& description, ContactList& warm_start) {
   if (scene.inflow.active()) {
     // Its bodies in play grow during a run; a saved state would have to say which are in play.
     return fmt::format(
@@ -277,6 +278,13 @@ InputProblem branch_from_saved_state(const RunArguments& args, const std::string
           args.from, *k + 1, scene_source);
     }
     description = saved.description;
+    warm_start = branch_warm_start(saved, scene.run.step.integrator.time_step);
+    if (!warm_start.empty()) {
+      const double ratio = scene.run.step.integrator.time_step / saved.time_step;
+      description +=
+          fmt::format("; warm start: its {} contacts' impulses{}", warm_start.size(),
+                      ratio == 1.0 ? std::string() : fmt::format(" times {:.6g} (the ratio of the time steps)", ratio));
+    }
   } catch (const BranchError& e) {
     return std::string("--from: ") + e.what();
   }
@@ -406,7 +414,8 @@ int run_command(const RunArguments& args) {
   if (const InputProblem problem = open_run(args, scene, control, loaded)) return bad_input(*problem);
   std::string branch_description;
   if (!args.from.empty()) {
-    if (const InputProblem problem = branch_from_saved_state(args, control.scene_source, scene, branch_description)) {
+    if (const InputProblem problem =
+            branch_from_saved_state(args, control.scene_source, scene, branch_description, control.warm_start)) {
       return bad_input(*problem);
     }
     control.rest_armed = true;

@@ -159,8 +159,11 @@ SavedState load_saved_state(const BranchSource& source) {
       SavedState saved;
       saved.state = std::move(loaded.checkpoint.state);
       saved.scene_text = loaded.checkpoint.scene_text;
+      saved.contacts = std::move(loaded.checkpoint.carry.contacts);
       try {
-        saved.model = parse_scene(loaded.checkpoint.scene_text, loaded.checkpoint.scene_source).model;
+        Scene saved_scene = parse_scene(loaded.checkpoint.scene_text, loaded.checkpoint.scene_source);
+        saved.model = std::move(saved_scene.model);
+        saved.time_step = saved_scene.run.step.integrator.time_step;
       } catch (const std::exception& error) {
         throw BranchError(
             fmt::format("{}: the checkpoint's scene cannot be read back: {}", loaded.file.string(), error.what()));
@@ -176,6 +179,17 @@ SavedState load_saved_state(const BranchSource& source) {
         fmt::format("{}: no checkpoint and no run file {} to take a state from", source.path.string(), file.string()));
   }
   return from_snapshot(source, file);
+}
+
+ContactList branch_warm_start(const SavedState& saved, double time_step) {
+  if (saved.contacts.empty() || !(saved.time_step > 0.0)) return {};
+  const double scale = time_step / saved.time_step;
+  ContactList contacts = saved.contacts;
+  for (Contact& contact : contacts) {
+    contact.impulse *= scale;
+    contact.angular_impulse *= scale;
+  }
+  return contacts;
 }
 
 std::optional<std::string> body_mismatch(const Model& scene_model, const Model& saved_model) {

@@ -166,6 +166,7 @@ RunSession::RunSession(const Scene& scene, State initial_state, const RunControl
   if (control_.resume != nullptr) {
     resume(*control_.resume);
   } else {
+    workspace_.carry.contacts = control_.warm_start;
     open_new_run();
   }
   output([&] { file_->hold_metadata_until_flush(); });

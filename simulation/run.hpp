@@ -37,6 +37,9 @@ struct RunControl {
   /// Where notes that matter even in a quiet run go (a stale lock taken over, a damaged run file
   /// set aside on resume); nullptr: nowhere.
   std::ostream* warnings = nullptr;
+  /// A new run's warm start for its first step (a branch's saved contacts, branch_warm_start in
+  /// branch.hpp); empty: from zero impulses. Not read when resuming (the checkpoint has its own).
+  ContactList warm_start;
   std::string scene_text;    ///< the scene as TOML, stored in the run file and the checkpoints
   std::string scene_source;  ///< the name the scene was parsed under (saved for resuming)
 
