@@ -355,7 +355,8 @@ void print_run_summary(const RunSummary& summary, bool resuming) {
                     ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched", summary.first_step)
                     : std::string())
             << ", t = " << summary.simulated_time << " s in " << summary.wall_seconds << " s wall ("
-            << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), mean NLGS iterations "
+            << summary.steps / std::max(summary.wall_seconds, 1e-9) << " steps/s), "
+            << (resuming ? "over the whole run (every session): " : "") << "mean NLGS iterations "
             << summary.mean_iterations << ", max residual " << summary.max_residual << ", " << summary.unconverged_steps
             << " steps at the iteration cap"
             << (summary.polish_attempts > 0 ? fmt::format(", {} Newton polishes", summary.polish_attempts)

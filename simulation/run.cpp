@@ -76,6 +76,7 @@ class RunSession {
   StepReport take_step();
   [[noreturn]] void fail_numerically(Problem problem);
   void warn_tunnelling();
+  void watch_sweep_cap(const StepReport& report);
   void account(const StepReport& report, double step_seconds);
   void checkpoint_if_due(std::int64_t done, Clock::time_point step_end, bool forced);
   void print_progress(const StepReport& report, const SeriesRow& row, Clock::time_point now, bool at_rest);
@@ -121,6 +122,14 @@ class RunSession {
   std::optional<double> potential_;  ///< the grains' potential energy after the last step, J
   double alert_distance_ = 0.0;
   bool tunnelling_warned_ = false;
+  /// The sweep-cap watch (watch_sweep_cap): steps of the current window, those of them that
+  /// stopped at max_iterations, their largest residual, and whether the warning was given.
+  struct SweepCapWindow {
+    int steps = 0;
+    int capped = 0;
+    double largest_residual = 0.0;
+    bool warned = false;
+  } sweep_cap_;
   std::size_t inflow_waiting_ = 0;  ///< inflow grains due but not in play (no room in their region)
 };
 
@@ -472,6 +481,33 @@ void RunSession::warn_tunnelling() {
   }
 }
 
+/// Steps whose solve stopped at max_iterations have contact forces less accurate than the
+/// tolerance asks. A few are harmless; when at least half of a window of 100 steps are, the
+/// solver is not keeping up with the scene (a deposit that keeps moving, a cap set too low), and
+/// the user is told once, on the warnings stream (also in a quiet run); the summary counts them all.
+void RunSession::watch_sweep_cap(const StepReport& report) {
+  constexpr int window = 100;
+  if (!report.solver.converged) {
+    ++sweep_cap_.capped;
+    sweep_cap_.largest_residual = std::max(sweep_cap_.largest_residual, report.solver.residual);
+  }
+  if (++sweep_cap_.steps < window) return;
+  if (!sweep_cap_.warned && 2 * sweep_cap_.capped >= window && control_.warnings) {
+    const SolverOptions& solver = run_.step.solver;
+    *control_.warnings << fmt::format(
+        "rubble run: warning: step {} (t = {:.6g} s): {} of the last {} steps stopped at the sweep cap ([solver] "
+        "max_iterations = {}) short of the tolerance {:.3g} (residual up to {:.2e}): their contact forces are less "
+        "accurate "
+        "than asked. Raise max_iterations, or see nlgs_solver/README.md, \"Convergence criterion\" (said once; "
+        "the summary counts every such step)\n",
+        state_.step, state_.time, sweep_cap_.capped, window, solver.max_iterations, solver.tolerance,
+        sweep_cap_.largest_residual);
+    control_.warnings->flush();
+    sweep_cap_.warned = true;
+  }
+  sweep_cap_ = SweepCapWindow{.warned = sweep_cap_.warned};
+}
+
 /// The step's share of the summary and of the run's bookkeeping (saved by checkpoints).
 void RunSession::account(const StepReport& report, double step_seconds) {
   for (std::size_t s = 0; s < summary_.stage_seconds.size(); ++s) summary_.stage_seconds[s] += report.stage_seconds[s];
@@ -480,6 +516,7 @@ void RunSession::account(const StepReport& report, double step_seconds) {
   progress_.max_residual = std::max(progress_.max_residual, report.solver.residual);
   if (!report.solver.converged) ++progress_.unconverged_steps;
   progress_.wall_seconds += step_seconds;
+  watch_sweep_cap(report);
 }
 
 /// A checkpoint every checkpoint_every_steps steps, every checkpoint_interval seconds of wall

@@ -414,5 +414,32 @@ TEST(NumericalFailure, DefaultBoundIsTheBoundingRadiusPerStep) {
   EXPECT_EQ(failure_of(scene, unchecked), "");
 }
 
+// Most steps stopping at the sweep cap is said once, on the warnings stream, with the count and
+// the largest residual; a run whose solves converge says nothing. The spheres land from step ~200
+// of 400: with one sweep a step and an unreachable tolerance, every step with contacts is capped.
+TEST(RunScene, WarnsOnceWhenMostStepsStopAtTheSweepCap) {
+  Scene capped = scene_in("sweep_cap");
+  capped.run.step.solver.max_iterations = 1;
+  capped.run.step.solver.tolerance = 1e-14;
+  std::ostringstream warnings;
+  RunControl control = control_for();
+  control.warnings = &warnings;
+  const RunSummary summary = run_scene(capped, control);
+  EXPECT_GE(summary.unconverged_steps, 150);
+  const std::string text = warnings.str();
+  const std::string expected =
+      "of the last 100 steps stopped at the sweep cap ([solver] max_iterations = 1) short of the tolerance";
+  const auto at = text.find(expected);
+  ASSERT_NE(at, std::string::npos) << text;
+  EXPECT_EQ(text.find(expected, at + 1), std::string::npos) << "said more than once: " << text;
+
+  Scene converging = scene_in("sweep_cap_default");
+  std::ostringstream quiet;
+  control.warnings = &quiet;
+  const RunSummary converged = run_scene(converging, control);
+  EXPECT_EQ(converged.unconverged_steps, 0);
+  EXPECT_EQ(quiet.str(), "");
+}
+
 }  // namespace
 }  // namespace rubble

@@ -28,7 +28,7 @@ std::string deposit_text() {
 }
 
 fs::path fresh_directory(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rubble_test_branch_" + name + "_" + std::to_string(::getpid()));
+  fs::path dir = fs::temp_directory_path() / ("rubble_test_branch_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   return dir;
 }
@@ -46,7 +46,7 @@ const fs::path& settled_deposit() {
   static const fs::path dir = [] {
     const std::string text = deposit_text();
     Scene scene = parse_scene(text, "branch_deposit.toml");
-    const fs::path out = fresh_directory("pour");
+    fs::path out = fresh_directory("pour");
     scene.run.output.directory = out.string();
     const RunSummary summary = run_scene(scene, quiet_control(text));
     EXPECT_TRUE(summary.reached_rest) << "the 27-sphere deposit did not come to rest";
