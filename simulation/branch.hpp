@@ -57,8 +57,8 @@ struct SavedState {
 /// The warm start of a branch's first step: the saved contacts with their impulses (and angular
 /// impulses) multiplied by time_step / saved.time_step, so that a pile at rest keeps the same
 /// forces when the branch changes dt (an impulse is a force times the step). Without it a branch
-/// solved its first step from zero impulses: on a settled deposit of 1 500 grains the sweep cap
-/// stopped that solve short of its tolerance and the deposit slumped (docs/checkpoints.md,
+/// solved its first step from zero impulses: on a deposit of 1 500 grains at rest the sweep cap
+/// stopped that solve short of its tolerance and the step set the grains moving (docs/checkpoints.md,
 /// "Branching"). Empty when `saved` has no contacts.
 ContactList branch_warm_start(const SavedState& saved, double time_step);
 
