@@ -125,10 +125,10 @@ class RunSession {
   /// The sweep-cap watch (watch_sweep_cap): steps of the current window, those of them that
   /// stopped at max_iterations, their largest residual, and whether the warning was given.
   struct SweepCapWindow {
-    int steps = 0;
-    int capped = 0;
-    double largest_residual = 0.0;
-    bool warned = false;
+    int steps = 0;                  ///< steps in the window so far
+    int capped = 0;                 ///< of them, stopped at max_iterations
+    double largest_residual = 0.0;  ///< the capped steps' largest end-of-step residual
+    bool warned = false;            ///< the warning was given (once a run)
   } sweep_cap_;
   std::size_t inflow_waiting_ = 0;  ///< inflow grains due but not in play (no room in their region)
 };
@@ -496,10 +496,9 @@ void RunSession::watch_sweep_cap(const StepReport& report) {
     const SolverOptions& solver = run_.step.solver;
     *control_.warnings << fmt::format(
         "rubble run: warning: step {} (t = {:.6g} s): {} of the last {} steps stopped at the sweep cap ([solver] "
-        "max_iterations = {}) short of the tolerance {:.3g} (residual up to {:.2e}): their contact forces are less "
-        "accurate "
-        "than asked. Raise max_iterations, or see nlgs_solver/README.md, \"Convergence criterion\" (said once; "
-        "the summary counts every such step)\n",
+        "max_iterations = {}) short of the tolerance {:.3g} (residual up to {:.2e}): their contact forces are "
+        "less accurate than asked. Raise max_iterations, or see nlgs_solver/README.md, \"Convergence criterion\" "
+        "(said once; the summary counts every such step)\n",
         state_.step, state_.time, sweep_cap_.capped, window, solver.max_iterations, solver.tolerance,
         sweep_cap_.largest_residual);
     control_.warnings->flush();
