@@ -70,7 +70,11 @@ bool arcs_cross(const Vec3& a1, const Vec3& a2, const Vec3& a2_x_a1, const Vec3&
   const double c2a = c2.dot(a2_x_a1);
   const double a1c = a1.dot(c2_x_c1);
   const double a2c = a2.dot(c2_x_c1);
-  return c1a * c2a < 0.0 && a1c * a2c < 0.0 && c1a * a2c > 0.0;
+  // The three tests are combined with & rather than &&: the first alone holds for a fair share of
+  // the edge pairs, in no order a branch predictor can learn from pair to pair, and a missed
+  // prediction costs more than the two dot products that short-circuiting saves (same answer).
+  return static_cast<bool>(static_cast<int>(c1a * c2a < 0.0) & static_cast<int>(a1c * a2c < 0.0) &
+                           static_cast<int>(c1a * a2c > 0.0));
 }
 
 // ----------------------------------------------------------------------------------------------
