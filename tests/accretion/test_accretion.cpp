@@ -23,6 +23,7 @@
 // t = 11 459 s after 4 095 steps, Z = 5.71 (force-bearing), 67 s CPU on one thread, almost all of it
 // Newton polishes of the compact aggregate (the energy criterion stopped near t = 6 000 s, ~7 s).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Eigenvalues>
 #include <filesystem>
@@ -121,7 +122,9 @@ double inertia_ellipsoid_aspect_ratio(const Model& model, const State& state) {
 TEST(Accretion, OneHundredTwentyFiveSpheresReachRestAsOneAggregate) {
   const Scene scene = parse_scene(scene_125, "accretion-125.toml");
   Scene run_scene_copy = scene;
-  const std::filesystem::path directory = std::filesystem::temp_directory_path() / "rubble-test-accretion-125";
+  // One folder per process: a Release and a sanitizer build may run this test at the same time.
+  const std::filesystem::path directory =
+      std::filesystem::temp_directory_path() / ("rubble-test-accretion-125-" + std::to_string(::getpid()));
   std::filesystem::remove_all(directory);
   run_scene_copy.run.output.directory = directory.string();
   RunControl control;
