@@ -372,12 +372,13 @@ void print_run_summary(const RunSummary& summary, bool resuming) {
 
 /// Steps the scene to its end (or a stop signal) and reports how it ended, with the exit code
 /// of docs/exit-codes.md: 0, 128 + the signal, or 2, 3, 4 by the type of what stopped it.
-int step_the_run(Scene& scene, const RunControl& control, bool resuming) {
+/// `warm_start`: a branch's first-step warm start (empty otherwise).
+int step_the_run(Scene& scene, const RunControl& control, bool resuming, ContactList warm_start) {
   try {
     const StopOnSignals handlers;
     // The run works on the scene's initial state itself, not a copy (one state less in memory).
     State initial_state = std::move(scene.state);
-    const RunSummary summary = run_scene(scene, std::move(initial_state), control);
+    const RunSummary summary = run_scene(scene, std::move(initial_state), std::move(warm_start), control);
     if (summary.interrupted) {
       const int signal_number = stop_signal.load();
       std::cout << "rubble run: stopped by " << signal_name(signal_number) << " at step " << summary.final_step
@@ -414,9 +415,10 @@ int run_command(const RunArguments& args) {
   LoadedCheckpoint loaded;  // a resumed run's checkpoint: control.resume points into it
   if (const InputProblem problem = open_run(args, scene, control, loaded)) return bad_input(*problem);
   std::string branch_description;
+  ContactList warm_start;  // a branch's: the saved run's contacts
   if (!args.from.empty()) {
     if (const InputProblem problem =
-            branch_from_saved_state(args, control.scene_source, scene, branch_description, control.warm_start)) {
+            branch_from_saved_state(args, control.scene_source, scene, branch_description, warm_start)) {
       return bad_input(*problem);
     }
     control.rest_armed = true;
@@ -428,7 +430,7 @@ int run_command(const RunArguments& args) {
     print_run_header(*control.progress, scene, args.from.empty() ? nullptr : &branch_description,
                      resuming ? &loaded : nullptr);
   }
-  return step_the_run(scene, control, resuming);
+  return step_the_run(scene, control, resuming, std::move(warm_start));
 }
 
 }  // namespace

@@ -57,7 +57,7 @@ std::int64_t steps_to_end(const RunOptions& run, double first_time) {
 /// the run file and the rest watcher.
 class RunSession {
  public:
-  RunSession(const Scene& scene, State initial_state, const RunControl& control);
+  RunSession(const Scene& scene, State initial_state, ContactList warm_start, const RunControl& control);
   /// Steps to the end (or rest, or a stop request) and returns the summary.
   RunSummary run();
 
@@ -133,7 +133,7 @@ class RunSession {
   std::size_t inflow_waiting_ = 0;  ///< inflow grains due but not in play (no room in their region)
 };
 
-RunSession::RunSession(const Scene& scene, State initial_state, const RunControl& control)
+RunSession::RunSession(const Scene& scene, State initial_state, ContactList warm_start, const RunControl& control)
     : scene_(scene),
       model_(scene.inflow.active() ? in_play_ : scene.model),
       run_(scene.run),
@@ -175,7 +175,7 @@ RunSession::RunSession(const Scene& scene, State initial_state, const RunControl
   if (control_.resume != nullptr) {
     resume(*control_.resume);
   } else {
-    workspace_.carry.contacts = control_.warm_start;
+    workspace_.carry.contacts = std::move(warm_start);
     open_new_run();
   }
   output([&] { file_->hold_metadata_until_flush(); });
@@ -669,9 +669,13 @@ SeriesRow series_row(const Model& model, const State& state, const StepReport& r
 }
 
 RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& control) {
+  return run_scene(scene, std::move(initial_state), ContactList(), control);
+}
+
+RunSummary run_scene(const Scene& scene, State initial_state, ContactList warm_start, const RunControl& control) {
   // Grains of infinite or zero mass are bad input, reported before the output folder is touched.
   check_mass_properties(scene.model);
-  RunSession session(scene, std::move(initial_state), control);
+  RunSession session(scene, std::move(initial_state), std::move(warm_start), control);
   return session.run();
 }
 

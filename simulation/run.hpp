@@ -37,9 +37,6 @@ struct RunControl {
   /// Where notes that matter even in a quiet run go (a stale lock taken over, a damaged run file
   /// set aside on resume); nullptr: nowhere.
   std::ostream* warnings = nullptr;
-  /// A new run's warm start for its first step (a branch's saved contacts, branch_warm_start in
-  /// branch.hpp); empty: from zero impulses. Not read when resuming (the checkpoint has its own).
-  ContactList warm_start;
   std::string scene_text;    ///< the scene as TOML, stored in the run file and the checkpoints
   std::string scene_source;  ///< the name the scene was parsed under (saved for resuming)
 
@@ -129,5 +126,11 @@ RunSummary run_scene(const Scene& scene, const RunControl& control);
 /// a caller that moves the scene's state in keeps one copy of it instead of two during the run
 /// (104 bytes a body).
 RunSummary run_scene(const Scene& scene, State initial_state, const RunControl& control);
+
+/// The same, with `warm_start` as the first step's warm start (a branch's saved contacts,
+/// branch_warm_start in branch.hpp; empty: from zero impulses), moved into the run's own contact
+/// list so that no second copy lives during the run. Not used when resuming (the checkpoint has
+/// its own).
+RunSummary run_scene(const Scene& scene, State initial_state, ContactList warm_start, const RunControl& control);
 
 }  // namespace rubble

@@ -70,9 +70,8 @@ BranchRun run_branch(const std::string& name, double dt, ContactList warm_start)
   scene.run.until_rest = false;
   scene.run.end_time = saved.state.time + 10.5 * dt;  // 10 or 11 steps (the count runs from t = 0)
   scene.run.output.directory = fresh_directory(name).string();
-  RunControl control = quiet_control(text);
-  control.warm_start = std::move(warm_start);
-  run_scene(scene, control);
+  State initial_state = scene.state;
+  run_scene(scene, std::move(initial_state), std::move(warm_start), quiet_control(text));
   const RunSeries series = RunReader::open(fs::path(scene.run.output.directory) / "run.h5").read_series();
   BranchRun run;
   run.sweeps.assign(series.iterations.begin(), series.iterations.end());
