@@ -2,7 +2,6 @@
 // contact laws for every pair of materials that can touch, walls with an inside, grains inside
 // the walls and not interpenetrating (docs/scene-file.md).
 #include <algorithm>
-#include <array>
 
 #include "simulation/scene_parser.hpp"
 
@@ -159,50 +158,53 @@ void check_grains_inside_walls(const SceneDraft& draft) {
   }
 }
 
-/// Grid search (cell = largest diameter) for pairs of grains overlapping by more than the
-/// allowed fraction of the smaller radius: O(N log N), fine for the largest scenes.
+/// Grid search (cell = largest sphere diameter) for pairs of spheres overlapping by more than the
+/// allowed fraction of the smaller radius: O(N log N), about a second for 10^6 spheres.
+/// Polyhedra are not checked: their bounding spheres may overlap without the solids touching,
+/// and generators never make overlapping grains.
 void check_grains_do_not_overlap(const SceneDraft& draft) {
   const auto& grains = draft.grains;
   double radius_max = 0.0;
-  for (const GrainSpec& g : grains) radius_max = std::max(radius_max, g.radius);
+  for (const GrainSpec& g : grains) {
+    if (!g.polyhedron) radius_max = std::max(radius_max, g.radius);
+  }
   const double cell = 2.0 * radius_max;
   struct Entry {
-    std::array<std::int64_t, 3> cell;
+    std::int64_t x, y, z;
     std::size_t grain;
   };
-  std::vector<Entry> entries(grains.size());
+  std::vector<Entry> entries;
   for (std::size_t i = 0; i < grains.size(); ++i) {
-    for (int axis = 0; axis < 3; ++axis) {
-      const double c = std::floor(grains[i].position[axis] / cell);
-      entries[i].cell[static_cast<std::size_t>(axis)] = static_cast<std::int64_t>(std::clamp(c, -1e15, 1e15));
-    }
-    entries[i].grain = i;
+    if (grains[i].polyhedron) continue;
+    const auto cell_of = [&](int axis) {
+      return static_cast<std::int64_t>(std::clamp(std::floor(grains[i].position[axis] / cell), -1e15, 1e15));
+    };
+    entries.push_back({cell_of(0), cell_of(1), cell_of(2), i});
   }
-  const auto less = [](const Entry& a, const Entry& b) {
-    return a.cell != b.cell ? a.cell < b.cell : a.grain < b.grain;
+  // Lexicographic (x, y, z) order: the three cells (x, y, z - 1 .. z + 1) of a column are
+  // contiguous, so each grain needs nine searches, not 27.
+  const auto before = [](const Entry& a, const Entry& b) {
+    if (a.x != b.x) return a.x < b.x;
+    if (a.y != b.y) return a.y < b.y;
+    if (a.z != b.z) return a.z < b.z;
+    return a.grain < b.grain;
   };
-  std::sort(entries.begin(), entries.end(), less);
+  std::sort(entries.begin(), entries.end(), before);
   for (const Entry& e : entries) {
     const GrainSpec& a = grains[e.grain];
     for (std::int64_t dx = -1; dx <= 1; ++dx) {
       for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const Entry key{{e.cell[0] + dx, e.cell[1] + dy, e.cell[2] + dz}, 0};
-          auto it = std::lower_bound(entries.begin(), entries.end(), key, less);
-          for (; it != entries.end() && it->cell == key.cell; ++it) {
-            if (it->grain <= e.grain) continue;
-            const GrainSpec& b = grains[it->grain];
-            // Polyhedra: their bounding spheres may overlap without the solids touching, and
-            // generators never make overlapping grains, so only sphere pairs are checked.
-            if (a.polyhedron || b.polyhedron) continue;
-            const double overlap = a.radius + b.radius - (a.position - b.position).norm();
-            if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
-              draft.root.fail(b.origin.node, grain_key(b.origin),
-                              grain_label(b.origin) + " overlaps " + grain_name(a.origin) + " by " +
-                                  show_short(overlap) +
-                                  " m: expected grains not to interpenetrate at the start (at most " +
-                                  show(100 * allowed_initial_overlap) + "% of the smaller radius)");
-            }
+        const Entry first{e.x + dx, e.y + dy, e.z - 1, 0};
+        auto it = std::lower_bound(entries.begin(), entries.end(), first, before);
+        for (; it != entries.end() && it->x == first.x && it->y == first.y && it->z <= e.z + 1; ++it) {
+          if (it->grain <= e.grain) continue;
+          const GrainSpec& b = grains[it->grain];
+          const double overlap = a.radius + b.radius - (a.position - b.position).norm();
+          if (overlap > allowed_initial_overlap * std::min(a.radius, b.radius)) {
+            draft.root.fail(b.origin.node, grain_key(b.origin),
+                            grain_label(b.origin) + " overlaps " + grain_name(a.origin) + " by " + show_short(overlap) +
+                                " m: expected grains not to interpenetrate at the start (at most " +
+                                show(100 * allowed_initial_overlap) + "% of the smaller radius)");
           }
         }
       }
