@@ -42,6 +42,7 @@ struct GravityArguments {
   int leaf_size = 0;   // 0: library default
   int group_size = 0;  // 0: library default
   int threads = 0;     // 0: OpenMP default
+  std::string precision = "double";
 };
 
 /// Invalid input: reported on stderr, exit code 2.
@@ -147,6 +148,9 @@ gravity::GravityOptions gravity_options(const GravityArguments& args) {
   if (args.softening > 0) options.softening = {gravity::Softening::Kind::plummer, args.softening};
   if (args.leaf_size > 0) options.leaf_size = args.leaf_size;
   if (args.group_size > 0) options.group_size = args.group_size;
+  if (args.precision != "double" && args.precision != "single")
+    throw BadInput("--precision must be double or single, got " + args.precision);
+  if (args.precision == "single") options.precision = gravity::KernelPrecision::single_precision;
   const std::string unavailable = gravity::backend_unavailable_reason(options);
   if (!unavailable.empty()) throw BadInput("--backend " + args.backend + ": " + unavailable);
   return options;
@@ -333,6 +337,9 @@ void register_gravity_command(CLI::App& app) {
   cmd->add_option("--leaf-size", args->leaf_size, "Max particles per tree leaf (0: library default)");
   cmd->add_option("--group-size", args->group_size, "Max targets per tree walk group (0: library default)");
   cmd->add_option("--threads", args->threads, "OpenMP threads (0: OMP_NUM_THREADS or all cores)");
+  cmd->add_option("--precision", args->precision,
+                  "Arithmetic of the tree's kernels: double, or single (faster; each term within ~1e-6)")
+      ->capture_default_str();
   cmd->callback([args] {
     const int code = gravity_command(*args);
     if (code != exit_ok) throw CLI::RuntimeError(code);

@@ -29,6 +29,16 @@ std::string to_string(Backend backend) {
   return "unknown";
 }
 
+std::string to_string(KernelPrecision precision) {
+  switch (precision) {
+    case KernelPrecision::double_precision:
+      return "double";
+    case KernelPrecision::single_precision:
+      return "single";
+  }
+  return "unknown";
+}
+
 std::string backend_unavailable_reason(const GravityOptions& options) {
   if (options.backend == Backend::cpu) return {};
   std::string reason;

@@ -91,6 +91,100 @@ __attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const doubl
   acc.phi += lane_sum(phi);
 }
 
+/// 1/sqrt(x) for x > 0 in single precision: VRSQRT14PS (relative error < 2^-14) and one Newton
+/// step (error ~(3/2) 2^-28 = 5.6e-9, below float's own rounding of 6e-8).
+__attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
+  const __m512 half_x = _mm512_mul_ps(_mm512_set1_ps(0.5F), x);
+  const __m512 y = _mm512_maskz_rsqrt14_ps(static_cast<__mmask16>(0xffff), x);
+  return _mm512_mul_ps(y, _mm512_fnmadd_ps(half_x, _mm512_mul_ps(y, y), _mm512_set1_ps(1.5F)));
+}
+
+/// Sum of the 16 float lanes, in double and in a fixed order.
+__attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
+  alignas(64) float t[16];
+  _mm512_store_ps(t, v);
+  double pairs[8];
+  for (std::size_t k = 0; k < 8; ++k) pairs[k] = static_cast<double>(t[2 * k]) + static_cast<double>(t[2 * k + 1]);
+  return ((pairs[0] + pairs[1]) + (pairs[2] + pairs[3])) + ((pairs[4] + pairs[5]) + (pairs[6] + pairs[7]));
+}
+
+__attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const float* sy, const float* sz,
+                                                          const float* sm, std::size_t n, float xi, float yi, float zi,
+                                                          float eps2, Accum& acc) {
+  const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
+  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
+  __m512 ax = zero, ay = zero, az = zero, phi = zero;
+  for (std::size_t j = 0; j < n; j += 16) {
+    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (n - j)) - 1u);
+    const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
+    const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
+    const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
+    const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
+    const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
+    const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
+    const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
+    const __m512 m_inv = _mm512_mul_ps(m, inv);
+    const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
+    ax = _mm512_fmadd_ps(dx, m_inv3, ax);
+    ay = _mm512_fmadd_ps(dy, m_inv3, ay);
+    az = _mm512_fmadd_ps(dz, m_inv3, az);
+    phi = _mm512_add_ps(phi, m_inv);
+  }
+  acc.ax += lane_sum_single(ax);
+  acc.ay += lane_sum_single(ay);
+  acc.az += lane_sum_single(az);
+  acc.phi += lane_sum_single(phi);
+}
+
+__attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float* cx, const float* cy, const float* cz,
+                                                                     const float* cm, const float* qxx,
+                                                                     const float* qxy, const float* qxz,
+                                                                     const float* qyy, const float* qyz,
+                                                                     const float* qzz, std::size_t n, float xi,
+                                                                     float yi, float zi, float eps2, Accum& acc) {
+  const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
+  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
+  const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
+               c05 = _mm512_set1_ps(0.5F);
+  __m512 ax = zero, ay = zero, az = zero, phi = zero;
+  for (std::size_t j = 0; j < n; j += 16) {
+    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (n - j)) - 1u);
+    // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
+    const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
+    const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
+    const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
+    const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
+    const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
+                 mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
+                 myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
+    const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
+    const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
+    const __m512 d2 = _mm512_mul_ps(d1, d1);
+    const __m512 d3 = _mm512_mul_ps(d1, d2);
+    const __m512 d5 = _mm512_mul_ps(d3, d2);
+    const __m512 d7 = _mm512_mul_ps(d5, d2);
+    const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
+    const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
+    const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
+    const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
+    const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
+    // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+    const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
+                                          _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
+    const __m512 d5x3 = _mm512_mul_ps(c3, d5);
+    ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
+    ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
+    az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
+    // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+    phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
+                                              _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
+  }
+  acc.ax += lane_sum_single(ax);
+  acc.ay += lane_sum_single(ay);
+  acc.az += lane_sum_single(az);
+  acc.phi += lane_sum_single(phi);
+}
+
 }  // namespace
 #endif
 
@@ -113,6 +207,31 @@ void p2p_portable(const double* sx, const double* sy, const double* sz, const do
     const double inv = valid ? 1.0 / std::sqrt(valid ? r2 : 1.0) : 0.0;
     const double m_inv = sm[j] * inv;
     const double m_inv3 = m_inv * inv * inv;
+    ax += dx * m_inv3;
+    ay += dy * m_inv3;
+    az += dz * m_inv3;
+    phi += m_inv;
+  }
+  acc.ax += ax;
+  acc.ay += ay;
+  acc.az += az;
+  acc.phi += phi;
+}
+
+RUBBLE_GRAVITY_CLONES
+void p2p_single_portable(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi,
+                         float yi, float zi, float eps2, Accum& acc) {
+  float ax = 0, ay = 0, az = 0, phi = 0;
+#pragma omp simd reduction(+ : ax, ay, az, phi)
+  for (std::size_t j = 0; j < n; ++j) {
+    const float dx = xi - sx[j];
+    const float dy = yi - sy[j];
+    const float dz = zi - sz[j];
+    const float r2 = dx * dx + dy * dy + dz * dz + eps2;
+    const bool valid = r2 > 0.0F;
+    const float inv = valid ? 1.0F / std::sqrt(valid ? r2 : 1.0F) : 0.0F;
+    const float m_inv = sm[j] * inv;
+    const float m_inv3 = m_inv * inv * inv;
     ax += dx * m_inv3;
     ay += dy * m_inv3;
     az += dz * m_inv3;
@@ -178,6 +297,63 @@ void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const 
   acc.ay += ay;
   acc.az += az;
   acc.phi += phi;
+}
+
+void p2p_single(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi, float yi,
+                float zi, float eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_single_avx512(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+#endif
+  p2p_single_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
+namespace {
+
+RUBBLE_GRAVITY_CLONES
+void m2p_quadrupole_single_portable(const float* cx, const float* cy, const float* cz, const float* cm,
+                                    const float* qxx, const float* qxy, const float* qxz, const float* qyy,
+                                    const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
+                                    float eps2, Accum& acc) {
+  float ax = 0, ay = 0, az = 0, phi = 0;
+#pragma omp simd reduction(+ : ax, ay, az, phi)
+  for (std::size_t j = 0; j < n; ++j) {
+    const float rx = xi - cx[j];
+    const float ry = yi - cy[j];
+    const float rz = zi - cz[j];
+    const float r2 = rx * rx + ry * ry + rz * rz + eps2;
+    const float d1 = 1.0F / std::sqrt(r2);
+    const float d2 = d1 * d1;
+    const float d3 = d1 * d2;
+    const float d5 = d3 * d2;
+    const float d7 = d5 * d2;
+    const float mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
+    const float mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
+    const float mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
+    const float rmr = rx * mrx + ry * mry + rz * mrz;
+    const float tr = qxx[j] + qyy[j] + qzz[j];
+    const float radial = cm[j] * d3 - 1.5F * d5 * tr + 7.5F * d7 * rmr;
+    const float d5x3 = 3.0F * d5;
+    ax += radial * rx - d5x3 * mrx;
+    ay += radial * ry - d5x3 * mry;
+    az += radial * rz - d5x3 * mrz;
+    phi += cm[j] * d1 + 1.5F * d5 * rmr - 0.5F * d3 * tr;
+  }
+  acc.ax += ax;
+  acc.ay += ay;
+  acc.az += az;
+  acc.phi += phi;
+}
+
+}  // namespace
+
+void m2p_quadrupole_single(const float* cx, const float* cy, const float* cz, const float* cm, const float* qxx,
+                           const float* qxy, const float* qxz, const float* qyy, const float* qyz, const float* qzz,
+                           std::size_t n, float xi, float yi, float zi, float eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512())
+    return m2p_quadrupole_single_avx512(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+#endif
+  m2p_quadrupole_single_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 }  // namespace rubble::gravity::detail

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "gravity/kernels.hpp"
 
@@ -67,6 +68,8 @@ void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& id
 /// Squared distance from point p to the box [lo, hi] (0 inside).
 inline double dist2_point_box(double px, double py, double pz, const std::array<double, 3>& lo,
                               const std::array<double, 3>& hi) {
+  // Pairwise std::max (MAXSD, no branches): the three-way std::max({...}) compiled to branches,
+  // mispredicted in the walk.
   const double dx = std::max({lo[0] - px, 0.0, px - hi[0]});
   const double dy = std::max({lo[1] - py, 0.0, py - hi[1]});
   const double dz = std::max({lo[2] - pz, 0.0, pz - hi[2]});
@@ -139,14 +142,31 @@ double set_centre_and_size(Tree::Node& nd, double m, double sx, double sy, doubl
 
 /// Per-thread scratch for one group: the interaction lists, gathered as structure of arrays so
 /// that the kernels run unit-stride over sources.
-struct Tree::GroupBuffers {
-  std::vector<double> px, py, pz, pm;                          // P2P sources (and monopole cells)
-  std::vector<double> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
-  std::vector<std::uint32_t> stack;
+template <typename Real>
+struct Tree::InteractionLists {
+  std::vector<Real> px, py, pz, pm;                          // P2P sources (and monopole cells)
+  std::vector<Real> cx, cy, cz, cm, xx, xy, xz, yy, yz, zz;  // quadrupole cells
   void clear() {
     for (auto* v : {&px, &py, &pz, &pm, &cx, &cy, &cz, &cm, &xx, &xy, &xz, &yy, &yz, &zz}) v->clear();
-    stack.clear();
   }
+};
+
+/// Lists hold Real((x - origin) * inv_length) for coordinates, Real(m * inv_mass) for masses and
+/// Real(M * inv_moment) for second moments. The double kernels use the identity (origin 0, scales
+/// 1: the values exactly). The single-precision ones use offsets from the group's centre in units
+/// of the root's size L and masses in units of the total mass M, so that no value leaves float's
+/// range and the offsets keep float's relative precision.
+struct Tree::ListUnits {
+  double ox = 0, oy = 0, oz = 0;
+  double inv_length = 1, inv_mass = 1, inv_moment = 1;
+};
+
+struct Tree::WalkNode {
+  double cx, cy, cz;  // centre of mass
+  double r_open2;     // squared opening radius max(l / theta + delta, b_max)^2
+  double mass;
+  std::uint32_t begin, count;
+  std::int32_t first_child, num_children;
 };
 
 Tree::Tree(int leaf_size, int group_size) : leaf_size_(leaf_size), group_size_(group_size) {
@@ -401,26 +421,6 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   const bool quadrupole = options.order == 2;
   std::uint64_t p2p_total = 0, m2p_total = 0;
 
-#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelWalkMin)
-  {
-    GroupBuffers buf;
-    // Groups are independent: each target's sums run in the same order whatever thread runs
-    // them, so dynamic scheduling keeps results bit-identical for any thread count.
-#pragma omp for schedule(dynamic, 4)
-    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
-      const Group& g = groups_[static_cast<std::size_t>(gi)];
-      gather_interactions(g, inv_theta, quadrupole, buf);
-      p2p_total += static_cast<std::uint64_t>(buf.pm.size()) * g.count;
-      m2p_total += static_cast<std::uint64_t>(buf.cm.size()) * g.count;
-      evaluate_group(g, buf, eps, options.G, accelerations, potential);
-    }
-  }
-  stats_.particle_interactions = p2p_total;
-  stats_.cell_interactions = m2p_total;
-  return seconds_since(t0);
-}
-
-void Tree::gather_interactions(const Group& g, double inv_theta, bool quadrupole, GroupBuffers& buf) const {
   // Opening criterion (Barnes 1994, "r > l/theta + delta"): a node is used as a multipole for the
   // whole group when the distance from its centre of mass to the group's bounding box exceeds
   //   r_open = max(l / theta + delta, b_max),
@@ -428,72 +428,176 @@ void Tree::gather_interactions(const Group& g, double inv_theta, bool quadrupole
   // the box centre. The b_max term keeps every target strictly outside the sphere holding the
   // node's particles (the expansion converges and a node never approximates a target's own mass,
   // even for theta >= 1).
-  // Quadrupole evaluations cost about two particle interactions: tiny nodes are summed directly.
-  const std::uint32_t direct_below = quadrupole ? 3 : 0;
-  auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
-    buf.px.insert(buf.px.end(), x_.begin() + b, x_.begin() + b + count);
-    buf.py.insert(buf.py.end(), y_.begin() + b, y_.begin() + b + count);
-    buf.pz.insert(buf.pz.end(), z_.begin() + b, z_.begin() + b + count);
-    buf.pm.insert(buf.pm.end(), m_.begin() + b, m_.begin() + b + count);
-  };
-  buf.clear();
-  buf.stack.push_back(0);
-  while (!buf.stack.empty()) {
-    const Node& nd = nodes_[buf.stack.back()];
-    const std::size_t ni = buf.stack.back();
-    buf.stack.pop_back();
-    const double d2 = dist2_point_box(nd.cx, nd.cy, nd.cz, g.lo, g.hi);
+  std::vector<WalkNode> walk(nodes_.size());
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const Node& nd = nodes_[i];
     const double r_open = std::max(nd.bmax, nd.size * inv_theta + nd.delta);
-    if (d2 > r_open * r_open) {  // well separated from every target of the group
-      if (!quadrupole) {
-        buf.px.push_back(nd.cx);
-        buf.py.push_back(nd.cy);
-        buf.pz.push_back(nd.cz);
-        buf.pm.push_back(nd.mass);
+    walk[i] = {nd.cx, nd.cy, nd.cz, r_open * r_open, nd.mass, nd.begin, nd.count, nd.first_child, nd.num_children};
+  }
+  const bool single = options.precision == KernelPrecision::single_precision;
+  // Single precision: lengths in units of the root's size, masses in units of the total mass.
+  const double length = single && nodes_[0].size > 0 ? nodes_[0].size : 1.0;
+  const double mass = single && nodes_[0].mass > 0 ? nodes_[0].mass : 1.0;
+
+#pragma omp parallel reduction(+ : p2p_total, m2p_total) if (n >= kParallelWalkMin)
+  {
+    InteractionLists<double> lists;
+    InteractionLists<float> single_lists;
+    std::vector<std::uint32_t> stack;
+    // Groups are independent: each target's sums run in the same order whatever thread runs
+    // them, so dynamic scheduling keeps results bit-identical for any thread count.
+#pragma omp for schedule(dynamic, 4)
+    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(groups_.size()); ++gi) {
+      const Group& g = groups_[static_cast<std::size_t>(gi)];
+      ListUnits units;
+      if (single) {
+        units = {.ox = 0.5 * (g.lo[0] + g.hi[0]),
+                 .oy = 0.5 * (g.lo[1] + g.hi[1]),
+                 .oz = 0.5 * (g.lo[2] + g.hi[2]),
+                 .inv_length = 1.0 / length,
+                 .inv_mass = 1.0 / mass,
+                 .inv_moment = 1.0 / (mass * length * length)};
+        if (quadrupole)
+          gather_interactions<float, true>(g, walk, units, single_lists, stack);
+        else
+          gather_interactions<float, false>(g, walk, units, single_lists, stack);
+        evaluate_group(g, single_lists, units, eps, options.G, accelerations, potential);
+      } else {
+        if (quadrupole)
+          gather_interactions<double, true>(g, walk, units, lists, stack);
+        else
+          gather_interactions<double, false>(g, walk, units, lists, stack);
+        evaluate_group(g, lists, units, eps, options.G, accelerations, potential);
+      }
+      const std::size_t np = single ? single_lists.pm.size() : lists.pm.size();
+      const std::size_t nc = single ? single_lists.cm.size() : lists.cm.size();
+      p2p_total += static_cast<std::uint64_t>(np) * g.count;
+      m2p_total += static_cast<std::uint64_t>(nc) * g.count;
+    }
+  }
+  stats_.particle_interactions = p2p_total;
+  stats_.cell_interactions = m2p_total;
+  return seconds_since(t0);
+}
+
+namespace {
+
+/// The kernels by the lists' precision: double (p2p_approximate, m2p_quadrupole) or float.
+inline void tree_p2p(const double* x, const double* y, const double* z, const double* m, std::size_t n,
+                     const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
+  detail::p2p_approximate(x, y, z, m, n, target[0], target[1], target[2], eps2, acc);
+}
+inline void tree_p2p(const float* x, const float* y, const float* z, const float* m, std::size_t n,
+                     const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
+  detail::p2p_single(x, y, z, m, n, static_cast<float>(target[0]), static_cast<float>(target[1]),
+                     static_cast<float>(target[2]), static_cast<float>(eps2), acc);
+}
+template <typename Lists>
+inline void tree_m2p(const Lists& l, const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
+  if constexpr (std::is_same_v<decltype(l.cm[0]), const double&>) {
+    detail::m2p_quadrupole(l.cx.data(), l.cy.data(), l.cz.data(), l.cm.data(), l.xx.data(), l.xy.data(), l.xz.data(),
+                           l.yy.data(), l.yz.data(), l.zz.data(), l.cm.size(), target[0], target[1], target[2], eps2,
+                           acc);
+  } else {
+    detail::m2p_quadrupole_single(l.cx.data(), l.cy.data(), l.cz.data(), l.cm.data(), l.xx.data(), l.xy.data(),
+                                  l.xz.data(), l.yy.data(), l.yz.data(), l.zz.data(), l.cm.size(),
+                                  static_cast<float>(target[0]), static_cast<float>(target[1]),
+                                  static_cast<float>(target[2]), static_cast<float>(eps2), acc);
+  }
+}
+
+}  // namespace
+
+template <typename Real, bool kQuadrupole>
+void Tree::gather_interactions(const Group& g, const std::vector<WalkNode>& walk, const ListUnits& units,
+                               InteractionLists<Real>& lists, std::vector<std::uint32_t>& stack) const {
+  // Quadrupole evaluations cost about two particle interactions: tiny nodes are summed directly.
+  constexpr std::uint32_t direct_below = kQuadrupole ? 3 : 0;
+  // Values as the lists store them (ListUnits); for double the identity, without arithmetic.
+  constexpr bool identity = std::is_same_v<Real, double>;
+  const auto length = [&](double x, double origin) {
+    if constexpr (identity) return x;
+    return static_cast<Real>((x - origin) * units.inv_length);
+  };
+  const auto scaled = [&](double value, double scale) {
+    if constexpr (identity) return value;
+    return static_cast<Real>(value * scale);
+  };
+  const auto point = [&](double x, double y, double z, double m) {
+    lists.px.push_back(length(x, units.ox));
+    lists.py.push_back(length(y, units.oy));
+    lists.pz.push_back(length(z, units.oz));
+    lists.pm.push_back(scaled(m, units.inv_mass));
+  };
+  const auto push_particles = [&](std::uint32_t b, std::uint32_t count) {
+    if constexpr (identity) {  // copy the ranges
+      lists.px.insert(lists.px.end(), x_.begin() + b, x_.begin() + b + count);
+      lists.py.insert(lists.py.end(), y_.begin() + b, y_.begin() + b + count);
+      lists.pz.insert(lists.pz.end(), z_.begin() + b, z_.begin() + b + count);
+      lists.pm.insert(lists.pm.end(), m_.begin() + b, m_.begin() + b + count);
+    } else {
+      for (std::uint32_t k = b; k < b + count; ++k) point(x_[k], y_[k], z_[k], m_[k]);
+    }
+  };
+  lists.clear();
+  stack.clear();
+  stack.push_back(0);
+  while (!stack.empty()) {
+    const std::size_t ni = stack.back();
+    const WalkNode& nd = walk[ni];
+    stack.pop_back();
+    if (dist2_point_box(nd.cx, nd.cy, nd.cz, g.lo, g.hi) > nd.r_open2) {  // well separated from every target
+      if constexpr (!kQuadrupole) {
+        point(nd.cx, nd.cy, nd.cz, nd.mass);
       } else if (nd.count < direct_below) {
         push_particles(nd.begin, nd.count);
       } else {
         const std::array<double, 6>& q = second_moments_[ni];
-        buf.cx.push_back(nd.cx);
-        buf.cy.push_back(nd.cy);
-        buf.cz.push_back(nd.cz);
-        buf.cm.push_back(nd.mass);
-        buf.xx.push_back(q[0]);
-        buf.xy.push_back(q[1]);
-        buf.xz.push_back(q[2]);
-        buf.yy.push_back(q[3]);
-        buf.yz.push_back(q[4]);
-        buf.zz.push_back(q[5]);
+        lists.cx.push_back(length(nd.cx, units.ox));
+        lists.cy.push_back(length(nd.cy, units.oy));
+        lists.cz.push_back(length(nd.cz, units.oz));
+        lists.cm.push_back(scaled(nd.mass, units.inv_mass));
+        lists.xx.push_back(scaled(q[0], units.inv_moment));
+        lists.xy.push_back(scaled(q[1], units.inv_moment));
+        lists.xz.push_back(scaled(q[2], units.inv_moment));
+        lists.yy.push_back(scaled(q[3], units.inv_moment));
+        lists.yz.push_back(scaled(q[4], units.inv_moment));
+        lists.zz.push_back(scaled(q[5], units.inv_moment));
       }
     } else if (nd.first_child < 0) {
       push_particles(nd.begin, nd.count);
     } else {
       for (std::int32_t c = nd.num_children - 1; c >= 0; --c)
-        buf.stack.push_back(static_cast<std::uint32_t>(nd.first_child + c));
+        stack.push_back(static_cast<std::uint32_t>(nd.first_child + c));
     }
   }
 }
 
-void Tree::evaluate_group(const Group& g, const GroupBuffers& buf, double eps, double G,
-                          std::span<double> accelerations, std::span<double> potential) const {
-  const double eps2 = eps * eps;
-  const std::size_t np = buf.pm.size(), nc = buf.cm.size();
+template <typename Real>
+void Tree::evaluate_group(const Group& g, const InteractionLists<Real>& lists, const ListUnits& units, double eps,
+                          double G, std::span<double> accelerations, std::span<double> potential) const {
+  // In the lists' units (identity for double): sum m r / r^3 scales back by M / L^2, sum m / r by
+  // M / L (ListUnits).
+  const double inv_mass = units.inv_mass, inv_length = units.inv_length;
+  const double to_acceleration = -G / inv_mass * inv_length * inv_length;
+  const double to_potential = -G / inv_mass * inv_length;
+  const double eps_scaled = eps * inv_length;
+  const double eps2 = eps_scaled * eps_scaled;
+  const std::size_t np = lists.pm.size(), nc = lists.cm.size();
   for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
+    const std::array<double, 3> target{(x_[k] - units.ox) * inv_length, (y_[k] - units.oy) * inv_length,
+                                       (z_[k] - units.oz) * inv_length};
     detail::Accum acc;
-    detail::p2p_approximate(buf.px.data(), buf.py.data(), buf.pz.data(), buf.pm.data(), np, x_[k], y_[k], z_[k], eps2,
-                            acc);
-    if (nc > 0)
-      detail::m2p_quadrupole(buf.cx.data(), buf.cy.data(), buf.cz.data(), buf.cm.data(), buf.xx.data(), buf.xy.data(),
-                             buf.xz.data(), buf.yy.data(), buf.yz.data(), buf.zz.data(), nc, x_[k], y_[k], z_[k], eps2,
-                             acc);
+    tree_p2p(lists.px.data(), lists.py.data(), lists.pz.data(), lists.pm.data(), np, target, eps2, acc);
+    if (nc > 0) tree_m2p(lists, target, eps2, acc);
     // The target's own leaf is always opened (it is within b_max of the node's centre), so
     // with softening its self term m_k / eps is in acc.phi: remove it.
-    if (eps2 > 0) acc.phi -= m_[k] / eps;
+    if (eps2 > 0) acc.phi -= m_[k] * inv_mass / eps_scaled;
     const std::size_t o = order_[k];
-    accelerations[3 * o] = -G * acc.ax;
-    accelerations[3 * o + 1] = -G * acc.ay;
-    accelerations[3 * o + 2] = -G * acc.az;
-    if (!potential.empty()) potential[o] = -G * acc.phi;
+    accelerations[3 * o] = to_acceleration * acc.ax;
+    accelerations[3 * o + 1] = to_acceleration * acc.ay;
+    accelerations[3 * o + 2] = to_acceleration * acc.az;
+    if (!potential.empty()) potential[o] = to_potential * acc.phi;
   }
 }
 

@@ -97,15 +97,24 @@ class Tree {
     std::array<double, 3> lo{}, hi{};
   };
   std::vector<Group> groups_;
-  /// The interaction lists of one group and the walk's stack (per thread; defined in tree.cpp).
-  struct GroupBuffers;
-  /// Walks the tree for group g: fills buf with the particles and the monopole or quadrupole
-  /// cells that act on its targets.
-  void gather_interactions(const Group& g, double inv_theta, bool quadrupole, GroupBuffers& buf) const;
-  /// The field of buf's interaction lists on each target of g (softening length eps, constant
-  /// G), written at the targets' input indices.
-  void evaluate_group(const Group& g, const GroupBuffers& buf, double eps, double G, std::span<double> accelerations,
-                      std::span<double> potential) const;
+  /// The interaction lists of one group in the kernels' precision (defined in tree.cpp).
+  template <typename Real>
+  struct InteractionLists;
+  /// How gathered values are stored in the lists (defined in tree.cpp).
+  struct ListUnits;
+  /// What the walk reads of a node, packed, with the opening radius of this evaluation's theta
+  /// (defined in tree.cpp).
+  struct WalkNode;
+  /// Walks the tree (walk: one entry per node) for group g: fills lists with the particles and the
+  /// monopole or quadrupole cells that act on its targets, in `units`; stack is the walk's scratch.
+  template <typename Real, bool kQuadrupole>
+  void gather_interactions(const Group& g, const std::vector<WalkNode>& walk, const ListUnits& units,
+                           InteractionLists<Real>& lists, std::vector<std::uint32_t>& stack) const;
+  /// The field of the lists on each target of g (softening length eps, constant G), written at
+  /// the targets' input indices.
+  template <typename Real>
+  void evaluate_group(const Group& g, const InteractionLists<Real>& lists, const ListUnits& units, double eps, double G,
+                      std::span<double> accelerations, std::span<double> potential) const;
   mutable Stats stats_;
 };
 

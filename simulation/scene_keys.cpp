@@ -285,27 +285,42 @@ const std::vector<SectionKey<GravitySettings>>& gravity_keys(std::string_view ty
   };
   static const std::vector<SectionKey<O>> direct =
       self_gravity_keys(gravity_type_row("direct", [](const O&) { return std::string("\"direct\""); }), {});
-  static const std::vector<SectionKey<O>> tree =
-      self_gravity_keys(gravity_type_row("tree", [](const O&) { return std::string("\"tree\""); }),
-                        {{.name = "theta",
-                          .option = [](O& o) -> OptionRef { return &o.self_gravity.theta; },
-                          .range = Range{0.0, 2.0, false, true},
-                          .doc = "opening angle of the tree"},
-                         {.name = "order",
-                          .option = [](O& o) -> OptionRef { return &o.self_gravity.order; },
-                          .low = 1,
-                          .high = 2,
-                          .doc = "multipole order: 1 monopole, 2 quadrupole"},
-                         {.name = "leaf_size",
-                          .option = [](O& o) -> OptionRef { return &o.self_gravity.leaf_size; },
-                          .low = 1,
-                          .high = 1'000'000,
-                          .doc = "largest number of grains in a tree leaf"},
-                         {.name = "group_size",
-                          .option = [](O& o) -> OptionRef { return &o.self_gravity.group_size; },
-                          .low = 1,
-                          .high = 1'000'000,
-                          .doc = "targets walking the tree together"}});
+  static const std::vector<SectionKey<O>> tree = self_gravity_keys(
+      gravity_type_row("tree", [](const O&) { return std::string("\"tree\""); }),
+      {{.name = "theta",
+        .option = [](O& o) -> OptionRef { return &o.self_gravity.theta; },
+        .range = Range{0.0, 2.0, false, true},
+        .doc = "opening angle of the tree"},
+       {.name = "order",
+        .option = [](O& o) -> OptionRef { return &o.self_gravity.order; },
+        .low = 1,
+        .high = 2,
+        .doc = "multipole order: 1 monopole, 2 quadrupole"},
+       {.name = "leaf_size",
+        .option = [](O& o) -> OptionRef { return &o.self_gravity.leaf_size; },
+        .low = 1,
+        .high = 1'000'000,
+        .doc = "largest number of grains in a tree leaf"},
+       {.name = "group_size",
+        .option = [](O& o) -> OptionRef { return &o.self_gravity.group_size; },
+        .low = 1,
+        .high = 1'000'000,
+        .doc = "targets walking the tree together"},
+       {.name = "precision",
+        .choices = {"double", "single"},
+        .written = [](const O& o) { return o.self_gravity.precision != gravity::KernelPrecision::double_precision; },
+        .read =
+            [](const TableReader& table, O& o) {
+              if (table.optional_choice("precision", {"double", "single"}).value_or("double") == "single")
+                o.self_gravity.precision = gravity::KernelPrecision::single_precision;
+            },
+        .write =
+            [](const O& o) {
+              std::string word = "\"";
+              return word.append(gravity::to_string(o.self_gravity.precision)).append("\"");
+            },
+        .doc = "arithmetic of the tree's kernels (single: 1.3-1.6x faster, each term within "
+               "~1e-6 of double)"}});
   // A fixed point mass (external_forces.hpp, CentralField): the Plummer-softened Kepler field.
   static const std::vector<SectionKey<O>> central = {
       gravity_type_row("central", [](const O&) { return std::string("\"central\""); }),

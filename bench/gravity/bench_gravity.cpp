@@ -3,6 +3,7 @@
 //   bench_gravity [--n 1000,10000,100000,1000000] [--theta 0.3,0.5,0.7,1.0] [--order 1,2]
 //                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
 //                 [--csv FILE] [--direct-rate] [--leaf-size 16] [--group-size 64]
+//                 [--precision double,single]
 //
 // Each tree figure is the best of --reps evaluations (tree build included), as wall-clock seconds
 // and as process CPU seconds (all threads; on a loaded machine the latter measures the work). Errors are the
@@ -22,6 +23,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "gravity/direct_sum.hpp"
@@ -82,14 +84,39 @@ double percentile(std::vector<double> v, double p) {
   return v[k];
 }
 
+/// "double,single" -> the kernel precisions, in that order.
+std::vector<g::KernelPrecision> parse_precisions(const std::string& text) {
+  std::vector<g::KernelPrecision> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item == "double")
+      out.push_back(g::KernelPrecision::double_precision);
+    else if (item == "single")
+      out.push_back(g::KernelPrecision::single_precision);
+    else {
+      std::fprintf(stderr, "--precision: expected double or single, got '%s'\n", item.c_str());
+      std::exit(2);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
+/// The command line's settings (see the usage at the top of this file).
+struct Arguments {
   std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2}, threads{1, 2};
   int reps = 3, leaf_size = g::GravityOptions{}.leaf_size, group_size = g::GravityOptions{}.group_size;
   std::size_t subset = 1000;
   std::string dist = "uniform", csv_path;
   bool direct_rate = false;
+  std::vector<g::KernelPrecision> precisions{g::KernelPrecision::double_precision};
+};
+
+/// Reads the command line; exits with code 2 on an unknown argument or a missing value.
+Arguments parse_arguments(int argc, char** argv) {
+  Arguments args;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     auto next = [&]() -> std::string {
@@ -100,72 +127,104 @@ int main(int argc, char** argv) {
       return argv[++a];
     };
     if (arg == "--n")
-      ns = parse_list(next());
+      args.ns = parse_list(next());
     else if (arg == "--theta")
-      thetas = parse_list(next());
+      args.thetas = parse_list(next());
     else if (arg == "--order")
-      orders = parse_list(next());
+      args.orders = parse_list(next());
     else if (arg == "--threads")
-      threads = parse_list(next());
+      args.threads = parse_list(next());
     else if (arg == "--reps")
-      reps = std::stoi(next());
+      args.reps = std::stoi(next());
     else if (arg == "--leaf-size")
-      leaf_size = std::stoi(next());
+      args.leaf_size = std::stoi(next());
     else if (arg == "--group-size")
-      group_size = std::stoi(next());
+      args.group_size = std::stoi(next());
     else if (arg == "--subset")
-      subset = std::stoul(next());
+      args.subset = std::stoul(next());
     else if (arg == "--dist")
-      dist = next();
+      args.dist = next();
     else if (arg == "--csv")
-      csv_path = next();
+      args.csv_path = next();
     else if (arg == "--direct-rate")
-      direct_rate = true;
+      args.direct_rate = true;
+    else if (arg == "--precision")
+      args.precisions = parse_precisions(next());
     else {
       std::fprintf(stderr, "unknown argument %s\n", arg.c_str());
-      return 2;
+      std::exit(2);
     }
   }
+  return args;
+}
+
+/// |a[i] - a_ref[k]| / |a_ref[k]| for each target i = targets[k].
+std::vector<double> relative_errors(const std::vector<double>& acc, const std::vector<double>& aref,
+                                    const std::vector<std::size_t>& targets) {
+  std::vector<double> err(targets.size());
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    const std::size_t i = targets[k];
+    double d2 = 0, a2 = 0;
+    for (int c = 0; c < 3; ++c) {
+      d2 += std::pow(acc[3 * i + c] - aref[3 * k + c], 2);
+      a2 += aref[3 * k + c] * aref[3 * k + c];
+    }
+    err[k] = std::sqrt(d2 / a2);
+  }
+  return err;
+}
+
+/// --direct-rate: pair interactions per second of the exact direct sum, per thread count.
+void run_direct_rate(const Arguments& args) {
+  const auto& [ns, threads, reps, dist] = std::tie(args.ns, args.threads, args.reps, args.dist);
+  std::printf(
+      "| N | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
+      "|\n|---|---|---|---|---|---|---|\n");
+  for (double nd : ns) {
+    const auto n = static_cast<std::size_t>(nd);
+    std::vector<double> pos, mass, acc(3 * n), pot(n);
+    make_particles(dist, n, 42, pos, mass);
+    g::GravityOptions o;
+    o.method = g::Method::direct;
+    o.G = 1.0;
+    for (double t : threads) {
+      omp_set_num_threads(static_cast<int>(t));
+      double best = 1e300, best_cpu = 1e300;
+      for (int r = 0; r < reps; ++r) {
+        const double t0 = now(), c0 = cpu_now();
+        g::direct_sum(o, pos, mass, acc, pot);
+        best = std::min(best, now() - t0);
+        best_cpu = std::min(best_cpu, cpu_now() - c0);
+      }
+      const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
+      std::printf("| %zu | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, static_cast<int>(t), best, best_cpu,
+                  pairs / best, pairs / best / t, pairs / best_cpu);
+      std::fflush(stdout);
+    }
+  }
+}
+
+int main(int argc, char** argv) {
+  const Arguments args = parse_arguments(argc, argv);
+  const auto& [ns, thetas, orders, threads, reps, leaf_size, group_size, subset, dist, csv_path, direct_rate,
+               precisions] = args;
   std::ofstream csv;
   if (!csv_path.empty()) {
     csv.open(csv_path);
-    csv << "dist,n,theta,order,threads,seconds,cpu_seconds,build_seconds,walk_seconds,median,p99,max\n";
+    csv << "dist,n,theta,order,threads,seconds,cpu_seconds,build_seconds,walk_seconds,median,p99,max,precision\n";
   }
   const int max_threads = static_cast<int>(*std::max_element(threads.begin(), threads.end()));
 
   if (direct_rate) {
-    std::printf(
-        "| N | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
-        "|\n|---|---|---|---|---|---|---|\n");
-    for (double nd : ns) {
-      const auto n = static_cast<std::size_t>(nd);
-      std::vector<double> pos, mass, acc(3 * n), pot(n);
-      make_particles(dist, n, 42, pos, mass);
-      g::GravityOptions o;
-      o.method = g::Method::direct;
-      o.G = 1.0;
-      for (double t : threads) {
-        omp_set_num_threads(static_cast<int>(t));
-        double best = 1e300, best_cpu = 1e300;
-        for (int r = 0; r < reps; ++r) {
-          const double t0 = now(), c0 = cpu_now();
-          g::direct_sum(o, pos, mass, acc, pot);
-          best = std::min(best, now() - t0);
-          best_cpu = std::min(best_cpu, cpu_now() - c0);
-        }
-        const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
-        std::printf("| %zu | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, static_cast<int>(t), best, best_cpu,
-                    pairs / best, pairs / best / t, pairs / best_cpu);
-        std::fflush(stdout);
-      }
-    }
+    run_direct_rate(args);
     return 0;
   }
 
   std::printf(
-      "| dist | N | θ | order | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | median | p99 | max |\n",
+      "| dist | N | θ | order | precision | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | median | "
+      "p99 | max |\n",
       reps);
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (double nd : ns) {
     const auto n = static_cast<std::size_t>(nd);
     std::vector<double> pos, mass;
@@ -185,45 +244,40 @@ int main(int argc, char** argv) {
     omp_set_num_threads(max_threads);
     g::direct_sum_targets(ref, pos, mass, targets, aref, {});
     for (double order : orders)
-      for (double theta : thetas) {
-        g::GravityOptions o;
-        o.method = g::Method::tree;
-        o.G = 1.0;
-        o.theta = theta;
-        o.order = static_cast<int>(order);
-        o.leaf_size = leaf_size;
-        o.group_size = group_size;
-        std::vector<double> acc(3 * n), pot(n);
-        for (double t : threads) {
-          omp_set_num_threads(static_cast<int>(t));
-          double best = 1e300, bb = 0, bw = 0, best_cpu = 1e300;
-          for (int r = 0; r < reps; ++r) {
-            const double t0 = now(), c0 = cpu_now();
-            const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
-            const double dt = now() - t0;
-            best_cpu = std::min(best_cpu, cpu_now() - c0);
-            if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds;
-          }
-          std::vector<double> err(targets.size());
-          for (std::size_t k = 0; k < targets.size(); ++k) {
-            const std::size_t i = targets[k];
-            double d2 = 0, a2 = 0;
-            for (int c = 0; c < 3; ++c) {
-              d2 += std::pow(acc[3 * i + c] - aref[3 * k + c], 2);
-              a2 += aref[3 * k + c] * aref[3 * k + c];
+      for (double theta : thetas)
+        for (g::KernelPrecision precision : precisions) {
+          g::GravityOptions o;
+          o.precision = precision;
+          o.method = g::Method::tree;
+          o.G = 1.0;
+          o.theta = theta;
+          o.order = static_cast<int>(order);
+          o.leaf_size = leaf_size;
+          o.group_size = group_size;
+          std::vector<double> acc(3 * n), pot(n);
+          for (double t : threads) {
+            omp_set_num_threads(static_cast<int>(t));
+            double best = 1e300, bb = 0, bw = 0, best_cpu = 1e300;
+            for (int r = 0; r < reps; ++r) {
+              const double t0 = now(), c0 = cpu_now();
+              const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
+              const double dt = now() - t0;
+              best_cpu = std::min(best_cpu, cpu_now() - c0);
+              if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds;
             }
-            err[k] = std::sqrt(d2 / a2);
+            std::vector<double> err = relative_errors(acc, aref, targets);
+            const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
+                         mx = *std::max_element(err.begin(), err.end());
+            std::printf("| %s | %zu | %.2g | %d | %s | %d | %.4g | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
+                        dist.c_str(), n, theta, o.order, g::to_string(precision).c_str(), static_cast<int>(t), best,
+                        best_cpu, bb, bw, med, p99, mx);
+            std::fflush(stdout);
+            if (csv.is_open())
+              csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best << ',' << best_cpu
+                  << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << ',' << g::to_string(precision)
+                  << '\n';
           }
-          const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
-                       mx = *std::max_element(err.begin(), err.end());
-          std::printf("| %s | %zu | %.2g | %d | %d | %.4g | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n", dist.c_str(),
-                      n, theta, o.order, static_cast<int>(t), best, best_cpu, bb, bw, med, p99, mx);
-          std::fflush(stdout);
-          if (csv.is_open())
-            csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best << ',' << best_cpu
-                << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << '\n';
         }
-      }
   }
   return 0;
 }

@@ -24,7 +24,8 @@ REFERENCE = [  # (label, seconds, median, p99)
 
 
 def main(csv_path, png_path):
-    rows = [r for r in csv.DictReader(open(csv_path)) if r["threads"] in ("1", "1.0")]
+    rows = [r for r in csv.DictReader(open(csv_path))
+            if r["threads"] in ("1", "1.0") and r.get("precision", "double") == "double"]
     sizes = sorted({int(r["n"]) for r in rows if int(r["n"]) >= 10000})
     fig, axes = plt.subplots(1, len(sizes), figsize=(5 * len(sizes), 4.2), squeeze=False)
     for ax, n in zip(axes[0], sizes):

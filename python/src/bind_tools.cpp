@@ -130,52 +130,60 @@ py::dict solve_problem(const LocalProblem& problem, const LocalProblemOptions& o
   return d;
 }
 
+/// rubble.gravity.field's core (python/rubble/gravity.py): the field of N point masses, the GIL
+/// released during the evaluation. Returns (acceleration, potential or None, build s, walk s).
+py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses, const std::string& method,
+                        double theta, int order, double G, double softening, bool with_potential, int leaf_size,
+                        int group_size, const std::string& precision) {
+  if (positions.ndim() != 2 || positions.shape(1) != 3)
+    throw gravity::GravityError("positions: expected an (N, 3) array");
+  if (masses.ndim() != 1 || masses.shape(0) != positions.shape(0)) {
+    throw gravity::GravityError(fmt::format("masses: expected {} values (one per position), got shape {}",
+                                            positions.shape(0), masses.ndim() == 1 ? masses.shape(0) : -1));
+  }
+  gravity::GravityOptions options;
+  if (method == "direct") {
+    options.method = gravity::Method::direct;
+  } else if (method == "tree") {
+    options.method = gravity::Method::tree;
+  } else {
+    throw gravity::GravityError("method: expected 'direct' or 'tree', got '" + method + "'");
+  }
+  options.theta = theta;
+  options.order = order;
+  options.G = G;
+  options.leaf_size = leaf_size;
+  options.group_size = group_size;
+  if (precision == "single") {
+    options.precision = gravity::KernelPrecision::single_precision;
+  } else if (precision != "double") {
+    throw gravity::GravityError("precision: expected 'double' or 'single', got '" + precision + "'");
+  }
+  if (softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, softening};
+  if (softening < 0.0) throw gravity::GravityError(fmt::format("softening: expected >= 0, got {}", softening));
+  const auto n = static_cast<std::size_t>(positions.shape(0));
+  py::array_t<double> acceleration({static_cast<py::ssize_t>(n), py::ssize_t{3}});
+  py::array_t<double> potential(with_potential ? static_cast<py::ssize_t>(n) : 0);
+  const std::span<const double> x(positions.data(), 3 * n), mass(masses.data(), n);
+  const std::span<double> a(acceleration.mutable_data(), 3 * n);
+  const std::span<double> phi(potential.mutable_data(), with_potential ? n : 0);
+  gravity::validate(options, x, mass, a, phi);
+  gravity::FieldTimings timings;
+  {
+    py::gil_scoped_release release;
+    timings = gravity::compute_field(options, x, mass, a, phi);
+  }
+  return py::make_tuple(acceleration, with_potential ? py::object(potential) : py::object(py::none()),
+                        timings.build_seconds, timings.walk_seconds);
+}
+
 }  // namespace
 
 void bind_tools(py::module_& m) {
   // ---- gravity ----
-  m.def(
-      "_gravity_field",
-      [](const DoubleArray& positions, const DoubleArray& masses, const std::string& method, double theta, int order,
-         double G, double softening, bool with_potential, int leaf_size, int group_size) {
-        if (positions.ndim() != 2 || positions.shape(1) != 3)
-          throw gravity::GravityError("positions: expected an (N, 3) array");
-        if (masses.ndim() != 1 || masses.shape(0) != positions.shape(0)) {
-          throw gravity::GravityError(fmt::format("masses: expected {} values (one per position), got shape {}",
-                                                  positions.shape(0), masses.ndim() == 1 ? masses.shape(0) : -1));
-        }
-        gravity::GravityOptions options;
-        if (method == "direct") {
-          options.method = gravity::Method::direct;
-        } else if (method == "tree") {
-          options.method = gravity::Method::tree;
-        } else {
-          throw gravity::GravityError("method: expected 'direct' or 'tree', got '" + method + "'");
-        }
-        options.theta = theta;
-        options.order = order;
-        options.G = G;
-        options.leaf_size = leaf_size;
-        options.group_size = group_size;
-        if (softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, softening};
-        if (softening < 0.0) throw gravity::GravityError(fmt::format("softening: expected >= 0, got {}", softening));
-        const auto n = static_cast<std::size_t>(positions.shape(0));
-        py::array_t<double> acceleration({static_cast<py::ssize_t>(n), py::ssize_t{3}});
-        py::array_t<double> potential(with_potential ? static_cast<py::ssize_t>(n) : 0);
-        const std::span<const double> x(positions.data(), 3 * n), mass(masses.data(), n);
-        const std::span<double> a(acceleration.mutable_data(), 3 * n);
-        const std::span<double> phi(potential.mutable_data(), with_potential ? n : 0);
-        gravity::validate(options, x, mass, a, phi);
-        gravity::FieldTimings timings;
-        {
-          py::gil_scoped_release release;
-          timings = gravity::compute_field(options, x, mass, a, phi);
-        }
-        return py::make_tuple(acceleration, with_potential ? py::object(potential) : py::object(py::none()),
-                              timings.build_seconds, timings.walk_seconds);
-      },
-      py::arg("positions"), py::arg("masses"), py::arg("method"), py::arg("theta"), py::arg("order"), py::arg("G"),
-      py::arg("softening"), py::arg("potential"), py::arg("leaf_size"), py::arg("group_size"));
+  m.def("_gravity_field", gravity_field, py::arg("positions"), py::arg("masses"), py::arg("method"), py::arg("theta"),
+        py::arg("order"), py::arg("G"), py::arg("softening"), py::arg("potential"), py::arg("leaf_size"),
+        py::arg("group_size"), py::arg("precision"));
 
   // ---- run files ----
   py::class_<RunReader>(m, "RunReader", "A run file (run.h5) open for reading: model, scene text, series, snapshots")
@@ -271,6 +279,7 @@ void bind_tools(py::module_& m) {
           files = post_process_run(run_file, options);
         }
         std::vector<std::string> names;
+        names.reserve(files.size());
         for (const auto& f : files) names.push_back(f.string());
         return names;
       },

@@ -126,6 +126,7 @@ order = 1
 softening = 0.1
 leaf_size = 8
 group_size = 32
+precision = "single"
 [[materials]]
 name = "m"
 density = 1
@@ -150,6 +151,7 @@ distribution = "uniform_volume_fraction"
   EXPECT_EQ(g.self_gravity.softening.length, 0.1);
   EXPECT_EQ(g.self_gravity.leaf_size, 8);
   EXPECT_EQ(g.self_gravity.group_size, 32);
+  EXPECT_EQ(g.self_gravity.precision, gravity::KernelPrecision::single_precision);
   EXPECT_EQ(g.self_gravity.backend, gravity::Backend::cpu);
   ASSERT_EQ(tree.model.body_count(), 27u);
   // Default cubic-grid cell = 2 radius_max = 1 m, centred on the origin: every grain in [-1.5, 1.5]^3.
