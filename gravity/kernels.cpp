@@ -1,6 +1,9 @@
 #include "gravity/kernels.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <type_traits>
 
 // The kernels are compiled several times (function multi-versioning): the loader picks the widest
 // instruction set the CPU has, so one portable binary still runs 8-wide AVX-512 on CPUs that have
@@ -26,6 +29,11 @@
 #endif
 
 namespace rubble::gravity::detail {
+
+/// Sources per float accumulation: the float lanes are folded into double every kFloatBlock
+/// sources, so that no float sum has more than kFloatBlock / lanes terms and its rounding error
+/// stays ~1e-7 relative however long the interaction list.
+constexpr std::size_t kFloatBlock = 1024;
 
 #ifdef RUBBLE_GRAVITY_AVX512
 namespace {
@@ -99,13 +107,15 @@ __attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
   return _mm512_mul_ps(y, _mm512_fnmadd_ps(half_x, _mm512_mul_ps(y, y), _mm512_set1_ps(1.5F)));
 }
 
-/// Sum of the 16 float lanes, in double and in a fixed order.
-__attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
-  alignas(64) float t[16];
-  _mm512_store_ps(t, v);
-  double pairs[8];
-  for (std::size_t k = 0; k < 8; ++k) pairs[k] = static_cast<double>(t[2 * k]) + static_cast<double>(t[2 * k + 1]);
-  return ((pairs[0] + pairs[1]) + (pairs[2] + pairs[3])) + ((pairs[4] + pairs[5]) + (pairs[6] + pairs[7]));
+/// total + the 16 float lanes of v, widened to double and added pairwise (lane k and k + 8).
+__attribute__((target("avx512f"))) inline __m512d add_widened(__m512d total, __m512 v) {
+  // The maskz forms: GCC 12's plain cast/extract/convert intrinsics trip -Wmaybe-uninitialized.
+  const __m512d bits = _mm512_castps_pd(v);
+  const __m256 low = _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(static_cast<__mmask8>(0xf), bits, 0));
+  const __m256 high = _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(static_cast<__mmask8>(0xf), bits, 1));
+  const __m512d sum = _mm512_add_pd(_mm512_maskz_cvtps_pd(static_cast<__mmask8>(0xff), low),
+                                    _mm512_maskz_cvtps_pd(static_cast<__mmask8>(0xff), high));
+  return _mm512_add_pd(total, sum);
 }
 
 __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const float* sy, const float* sz,
@@ -113,27 +123,36 @@ __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const
                                                           float eps2, Accum& acc) {
   const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
   const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
-  __m512 ax = zero, ay = zero, az = zero, phi = zero;
-  for (std::size_t j = 0; j < n; j += 16) {
-    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (n - j)) - 1u);
-    const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
-    const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
-    const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
-    const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
-    const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
-    const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
-    const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
-    const __m512 m_inv = _mm512_mul_ps(m, inv);
-    const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
-    ax = _mm512_fmadd_ps(dx, m_inv3, ax);
-    ay = _mm512_fmadd_ps(dy, m_inv3, ay);
-    az = _mm512_fmadd_ps(dz, m_inv3, az);
-    phi = _mm512_add_ps(phi, m_inv);
+  __m512d total_x = _mm512_setzero_pd(), total_y = total_x, total_z = total_x, total_phi = total_x;
+  for (std::size_t begin = 0; begin < n; begin += kFloatBlock) {
+    const std::size_t end = std::min(n, begin + kFloatBlock);
+    __m512 ax = zero, ay = zero, az = zero, phi = zero;
+    for (std::size_t j = begin; j < end; j += 16) {
+      const __mmask16 live =
+          end - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (end - j)) - 1u);
+      const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
+      const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
+      const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
+      const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
+      const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
+      const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
+      const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
+      const __m512 m_inv = _mm512_mul_ps(m, inv);
+      const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
+      ax = _mm512_fmadd_ps(dx, m_inv3, ax);
+      ay = _mm512_fmadd_ps(dy, m_inv3, ay);
+      az = _mm512_fmadd_ps(dz, m_inv3, az);
+      phi = _mm512_add_ps(phi, m_inv);
+    }
+    total_x = add_widened(total_x, ax);
+    total_y = add_widened(total_y, ay);
+    total_z = add_widened(total_z, az);
+    total_phi = add_widened(total_phi, phi);
   }
-  acc.ax += lane_sum_single(ax);
-  acc.ay += lane_sum_single(ay);
-  acc.az += lane_sum_single(az);
-  acc.phi += lane_sum_single(phi);
+  acc.ax += lane_sum(total_x);
+  acc.ay += lane_sum(total_y);
+  acc.az += lane_sum(total_z);
+  acc.phi += lane_sum(total_phi);
 }
 
 __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float* cx, const float* cy, const float* cz,
@@ -146,43 +165,52 @@ __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float
   const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
   const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
                c05 = _mm512_set1_ps(0.5F);
-  __m512 ax = zero, ay = zero, az = zero, phi = zero;
-  for (std::size_t j = 0; j < n; j += 16) {
-    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (n - j)) - 1u);
-    // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
-    const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
-    const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
-    const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
-    const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
-    const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
-                 mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
-                 myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
-    const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
-    const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
-    const __m512 d2 = _mm512_mul_ps(d1, d1);
-    const __m512 d3 = _mm512_mul_ps(d1, d2);
-    const __m512 d5 = _mm512_mul_ps(d3, d2);
-    const __m512 d7 = _mm512_mul_ps(d5, d2);
-    const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
-    const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
-    const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
-    const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
-    const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
-    // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
-    const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
-                                          _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
-    const __m512 d5x3 = _mm512_mul_ps(c3, d5);
-    ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
-    ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
-    az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
-    // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-    phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
-                                              _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
+  __m512d total_x = _mm512_setzero_pd(), total_y = total_x, total_z = total_x, total_phi = total_x;
+  for (std::size_t begin = 0; begin < n; begin += kFloatBlock) {
+    const std::size_t end = std::min(n, begin + kFloatBlock);
+    __m512 ax = zero, ay = zero, az = zero, phi = zero;
+    for (std::size_t j = begin; j < end; j += 16) {
+      const __mmask16 live =
+          end - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (end - j)) - 1u);
+      // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
+      const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
+      const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
+      const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
+      const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
+      const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
+                   mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
+                   myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
+      const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
+      const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
+      const __m512 d2 = _mm512_mul_ps(d1, d1);
+      const __m512 d3 = _mm512_mul_ps(d1, d2);
+      const __m512 d5 = _mm512_mul_ps(d3, d2);
+      const __m512 d7 = _mm512_mul_ps(d5, d2);
+      const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
+      const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
+      const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
+      const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
+      const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
+      // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+      const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
+                                            _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
+      const __m512 d5x3 = _mm512_mul_ps(c3, d5);
+      ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
+      ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
+      az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
+      // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+      phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
+                                                _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
+    }
+    total_x = add_widened(total_x, ax);
+    total_y = add_widened(total_y, ay);
+    total_z = add_widened(total_z, az);
+    total_phi = add_widened(total_phi, phi);
   }
-  acc.ax += lane_sum_single(ax);
-  acc.ay += lane_sum_single(ay);
-  acc.az += lane_sum_single(az);
-  acc.phi += lane_sum_single(phi);
+  acc.ax += lane_sum(total_x);
+  acc.ay += lane_sum(total_y);
+  acc.az += lane_sum(total_z);
+  acc.phi += lane_sum(total_phi);
 }
 
 }  // namespace
@@ -190,57 +218,108 @@ __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float
 
 namespace {
 
+/// The portable particle kernel's loop, in double or float. Always inlined into the
+/// instruction-set clones below, so that each clone compiles it for its own vector width.
+template <typename Real>
+__attribute__((always_inline)) inline void p2p_loop(const Real* sx, const Real* sy, const Real* sz, const Real* sm,
+                                                    std::size_t n, Real xi, Real yi, Real zi, Real eps2, Accum& acc) {
+  // Float sums restart every kFloatBlock sources (added to acc in double); double runs one block.
+  constexpr std::size_t block = std::is_same_v<Real, float> ? kFloatBlock : std::numeric_limits<std::size_t>::max();
+  for (std::size_t begin = 0; begin < n;) {
+    const std::size_t end = n - begin > block ? begin + block : n;
+    Real ax = 0, ay = 0, az = 0, phi = 0;
+#pragma omp simd reduction(+ : ax, ay, az, phi)
+    for (std::size_t j = begin; j < end; ++j) {
+      const Real dx = xi - sx[j];
+      const Real dy = yi - sy[j];
+      const Real dz = zi - sz[j];
+      const Real r2 = dx * dx + dy * dy + dz * dz + eps2;
+      // r2 == 0 only for the target itself (or an exactly coincident particle) without softening:
+      // its contribution is defined as zero. Select before and after the division so that no lane
+      // ever divides by zero and the branch becomes a blend.
+      const bool valid = r2 > Real(0);
+      const Real inv = valid ? Real(1) / std::sqrt(valid ? r2 : Real(1)) : Real(0);
+      const Real m_inv = sm[j] * inv;
+      const Real m_inv3 = m_inv * inv * inv;
+      ax += dx * m_inv3;
+      ay += dy * m_inv3;
+      az += dz * m_inv3;
+      phi += m_inv;
+    }
+    acc.ax += ax;
+    acc.ay += ay;
+    acc.az += az;
+    acc.phi += phi;
+    begin = end;
+  }
+}
+
 RUBBLE_GRAVITY_CLONES
 void p2p_portable(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
                   double yi, double zi, double eps2, Accum& acc) {
-  double ax = 0, ay = 0, az = 0, phi = 0;
-#pragma omp simd reduction(+ : ax, ay, az, phi)
-  for (std::size_t j = 0; j < n; ++j) {
-    const double dx = xi - sx[j];
-    const double dy = yi - sy[j];
-    const double dz = zi - sz[j];
-    const double r2 = dx * dx + dy * dy + dz * dz + eps2;
-    // r2 == 0 only for the target itself (or an exactly coincident particle) without softening:
-    // its contribution is defined as zero. Select before and after the division so that no lane
-    // ever divides by zero and the branch becomes a blend.
-    const bool valid = r2 > 0.0;
-    const double inv = valid ? 1.0 / std::sqrt(valid ? r2 : 1.0) : 0.0;
-    const double m_inv = sm[j] * inv;
-    const double m_inv3 = m_inv * inv * inv;
-    ax += dx * m_inv3;
-    ay += dy * m_inv3;
-    az += dz * m_inv3;
-    phi += m_inv;
-  }
-  acc.ax += ax;
-  acc.ay += ay;
-  acc.az += az;
-  acc.phi += phi;
+  p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
 RUBBLE_GRAVITY_CLONES
 void p2p_single_portable(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi,
                          float yi, float zi, float eps2, Accum& acc) {
-  float ax = 0, ay = 0, az = 0, phi = 0;
+  p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+}
+
+/// The quadrupole kernel's loop (formulas in kernels.hpp), in double or float; inlined like
+/// p2p_loop.
+template <typename Real>
+__attribute__((always_inline)) inline void m2p_quadrupole_loop(const Real* cx, const Real* cy, const Real* cz,
+                                                               const Real* cm, const Real* qxx, const Real* qxy,
+                                                               const Real* qxz, const Real* qyy, const Real* qyz,
+                                                               const Real* qzz, std::size_t n, Real xi, Real yi,
+                                                               Real zi, Real eps2, Accum& acc) {
+  // Float sums restart every kFloatBlock sources (added to acc in double); double runs one block.
+  constexpr std::size_t block = std::is_same_v<Real, float> ? kFloatBlock : std::numeric_limits<std::size_t>::max();
+  for (std::size_t begin = 0; begin < n;) {
+    const std::size_t end = n - begin > block ? begin + block : n;
+    Real ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
-  for (std::size_t j = 0; j < n; ++j) {
-    const float dx = xi - sx[j];
-    const float dy = yi - sy[j];
-    const float dz = zi - sz[j];
-    const float r2 = dx * dx + dy * dy + dz * dz + eps2;
-    const bool valid = r2 > 0.0F;
-    const float inv = valid ? 1.0F / std::sqrt(valid ? r2 : 1.0F) : 0.0F;
-    const float m_inv = sm[j] * inv;
-    const float m_inv3 = m_inv * inv * inv;
-    ax += dx * m_inv3;
-    ay += dy * m_inv3;
-    az += dz * m_inv3;
-    phi += m_inv;
+    for (std::size_t j = begin; j < end; ++j) {
+      const Real rx = xi - cx[j];
+      const Real ry = yi - cy[j];
+      const Real rz = zi - cz[j];
+      // Accepted cells are always well separated (distance > b_max / theta > 0): no guard needed.
+      const Real r2 = rx * rx + ry * ry + rz * rz + eps2;
+      const Real d1 = Real(1) / std::sqrt(r2);
+      const Real d2 = d1 * d1;
+      const Real d3 = d1 * d2;
+      const Real d5 = d3 * d2;
+      const Real d7 = d5 * d2;
+      // M r and r.M.r with the symmetric second moment.
+      const Real mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
+      const Real mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
+      const Real mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
+      const Real rmr = rx * mrx + ry * mry + rz * mrz;
+      const Real tr = qxx[j] + qyy[j] + qzz[j];
+      // a/(-G) = (m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr) r - 3 D^5 M r
+      const Real radial = cm[j] * d3 - Real(1.5) * d5 * tr + Real(7.5) * d7 * rmr;
+      const Real d5x3 = Real(3) * d5;
+      ax += radial * rx - d5x3 * mrx;
+      ay += radial * ry - d5x3 * mry;
+      az += radial * rz - d5x3 * mrz;
+      // phi/(-G) = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+      phi += cm[j] * d1 + Real(1.5) * d5 * rmr - Real(0.5) * d3 * tr;
+    }
+    acc.ax += ax;
+    acc.ay += ay;
+    acc.az += az;
+    acc.phi += phi;
+    begin = end;
   }
-  acc.ax += ax;
-  acc.ay += ay;
-  acc.az += az;
-  acc.phi += phi;
+}
+
+RUBBLE_GRAVITY_CLONES
+void m2p_quadrupole_single_portable(const float* cx, const float* cy, const float* cz, const float* cm,
+                                    const float* qxx, const float* qxy, const float* qxz, const float* qyy,
+                                    const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
+                                    float eps2, Accum& acc) {
+  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 }  // namespace
@@ -265,38 +344,7 @@ RUBBLE_GRAVITY_CLONES
 void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
                     const double* qxy, const double* qxz, const double* qyy, const double* qyz, const double* qzz,
                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
-  double ax = 0, ay = 0, az = 0, phi = 0;
-#pragma omp simd reduction(+ : ax, ay, az, phi)
-  for (std::size_t j = 0; j < n; ++j) {
-    const double rx = xi - cx[j];
-    const double ry = yi - cy[j];
-    const double rz = zi - cz[j];
-    // Accepted cells are always well separated (distance > b_max / theta > 0): no guard needed.
-    const double r2 = rx * rx + ry * ry + rz * rz + eps2;
-    const double d1 = 1.0 / std::sqrt(r2);
-    const double d2 = d1 * d1;
-    const double d3 = d1 * d2;
-    const double d5 = d3 * d2;
-    const double d7 = d5 * d2;
-    // M r and r.M.r with the symmetric second moment.
-    const double mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
-    const double mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
-    const double mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
-    const double rmr = rx * mrx + ry * mry + rz * mrz;
-    const double tr = qxx[j] + qyy[j] + qzz[j];
-    // a/(-G) = (m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr) r - 3 D^5 M r
-    const double radial = cm[j] * d3 - 1.5 * d5 * tr + 7.5 * d7 * rmr;
-    const double d5x3 = 3.0 * d5;
-    ax += radial * rx - d5x3 * mrx;
-    ay += radial * ry - d5x3 * mry;
-    az += radial * rz - d5x3 * mrz;
-    // phi/(-G) = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-    phi += cm[j] * d1 + 1.5 * d5 * rmr - 0.5 * d3 * tr;
-  }
-  acc.ax += ax;
-  acc.ay += ay;
-  acc.az += az;
-  acc.phi += phi;
+  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 void p2p_single(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi, float yi,
@@ -306,45 +354,6 @@ void p2p_single(const float* sx, const float* sy, const float* sz, const float* 
 #endif
   p2p_single_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
-
-namespace {
-
-RUBBLE_GRAVITY_CLONES
-void m2p_quadrupole_single_portable(const float* cx, const float* cy, const float* cz, const float* cm,
-                                    const float* qxx, const float* qxy, const float* qxz, const float* qyy,
-                                    const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
-                                    float eps2, Accum& acc) {
-  float ax = 0, ay = 0, az = 0, phi = 0;
-#pragma omp simd reduction(+ : ax, ay, az, phi)
-  for (std::size_t j = 0; j < n; ++j) {
-    const float rx = xi - cx[j];
-    const float ry = yi - cy[j];
-    const float rz = zi - cz[j];
-    const float r2 = rx * rx + ry * ry + rz * rz + eps2;
-    const float d1 = 1.0F / std::sqrt(r2);
-    const float d2 = d1 * d1;
-    const float d3 = d1 * d2;
-    const float d5 = d3 * d2;
-    const float d7 = d5 * d2;
-    const float mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
-    const float mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
-    const float mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
-    const float rmr = rx * mrx + ry * mry + rz * mrz;
-    const float tr = qxx[j] + qyy[j] + qzz[j];
-    const float radial = cm[j] * d3 - 1.5F * d5 * tr + 7.5F * d7 * rmr;
-    const float d5x3 = 3.0F * d5;
-    ax += radial * rx - d5x3 * mrx;
-    ay += radial * ry - d5x3 * mry;
-    az += radial * rz - d5x3 * mrz;
-    phi += cm[j] * d1 + 1.5F * d5 * rmr - 0.5F * d3 * tr;
-  }
-  acc.ax += ax;
-  acc.ay += ay;
-  acc.az += az;
-  acc.phi += phi;
-}
-
-}  // namespace
 
 void m2p_quadrupole_single(const float* cx, const float* cy, const float* cz, const float* cm, const float* qxx,
                            const float* qxy, const float* qxz, const float* qyy, const float* qyz, const float* qzz,

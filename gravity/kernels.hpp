@@ -45,9 +45,10 @@ void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const 
 
 /// p2p in single precision, for the tree's KernelPrecision::single: sources and target as floats
 /// (the tree passes offsets from the group's centre in scaled units, so that neither the range nor
-/// the cancellation of x_i - x_j costs digits), sums in float lanes, the lanes' totals added to acc
-/// in double. Each term within a relative ~1e-6 of p2p's (1/sqrt from VRSQRT14PS and one Newton
-/// step on AVX-512 CPUs). A source at r^2 + eps2 == 0 contributes nothing, as in p2p.
+/// the cancellation of x_i - x_j costs digits), sums in float lanes restarted every 1 024 sources,
+/// each block's lanes added to acc in double. Each term within a relative ~1e-6 of p2p's
+/// (1/sqrt from VRSQRT14PS and one Newton step on AVX-512 CPUs). A source at r^2 + eps2 == 0
+/// contributes nothing, as in p2p.
 void p2p_single(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi, float yi,
                 float zi, float eps2, Accum& acc);
 
