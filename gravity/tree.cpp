@@ -68,8 +68,6 @@ void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& id
 /// Squared distance from point p to the box [lo, hi] (0 inside).
 inline double dist2_point_box(double px, double py, double pz, const std::array<double, 3>& lo,
                               const std::array<double, 3>& hi) {
-  // Pairwise std::max (MAXSD, no branches): the three-way std::max({...}) compiled to branches,
-  // mispredicted in the walk.
   const double dx = std::max({lo[0] - px, 0.0, px - hi[0]});
   const double dy = std::max({lo[1] - py, 0.0, py - hi[1]});
   const double dz = std::max({lo[2] - pz, 0.0, pz - hi[2]});
