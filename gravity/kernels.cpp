@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <type_traits>
 
 // The kernels are compiled several times (function multi-versioning): the loader picks the widest
 // instruction set the CPU has, so one portable binary still runs 8-wide AVX-512 on CPUs that have
@@ -223,35 +221,29 @@ namespace {
 template <typename Real>
 __attribute__((always_inline)) inline void p2p_loop(const Real* sx, const Real* sy, const Real* sz, const Real* sm,
                                                     std::size_t n, Real xi, Real yi, Real zi, Real eps2, Accum& acc) {
-  // Float sums restart every kFloatBlock sources (added to acc in double); double runs one block.
-  constexpr std::size_t block = std::is_same_v<Real, float> ? kFloatBlock : std::numeric_limits<std::size_t>::max();
-  for (std::size_t begin = 0; begin < n;) {
-    const std::size_t end = n - begin > block ? begin + block : n;
-    Real ax = 0, ay = 0, az = 0, phi = 0;
+  Real ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
-    for (std::size_t j = begin; j < end; ++j) {
-      const Real dx = xi - sx[j];
-      const Real dy = yi - sy[j];
-      const Real dz = zi - sz[j];
-      const Real r2 = dx * dx + dy * dy + dz * dz + eps2;
-      // r2 == 0 only for the target itself (or an exactly coincident particle) without softening:
-      // its contribution is defined as zero. Select before and after the division so that no lane
-      // ever divides by zero and the branch becomes a blend.
-      const bool valid = r2 > Real(0);
-      const Real inv = valid ? Real(1) / std::sqrt(valid ? r2 : Real(1)) : Real(0);
-      const Real m_inv = sm[j] * inv;
-      const Real m_inv3 = m_inv * inv * inv;
-      ax += dx * m_inv3;
-      ay += dy * m_inv3;
-      az += dz * m_inv3;
-      phi += m_inv;
-    }
-    acc.ax += ax;
-    acc.ay += ay;
-    acc.az += az;
-    acc.phi += phi;
-    begin = end;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Real dx = xi - sx[j];
+    const Real dy = yi - sy[j];
+    const Real dz = zi - sz[j];
+    const Real r2 = dx * dx + dy * dy + dz * dz + eps2;
+    // r2 == 0 only for the target itself (or an exactly coincident particle) without softening:
+    // its contribution is defined as zero. Select before and after the division so that no lane
+    // ever divides by zero and the branch becomes a blend.
+    const bool valid = r2 > Real(0);
+    const Real inv = valid ? Real(1) / std::sqrt(valid ? r2 : Real(1)) : Real(0);
+    const Real m_inv = sm[j] * inv;
+    const Real m_inv3 = m_inv * inv * inv;
+    ax += dx * m_inv3;
+    ay += dy * m_inv3;
+    az += dz * m_inv3;
+    phi += m_inv;
   }
+  acc.ax += ax;
+  acc.ay += ay;
+  acc.az += az;
+  acc.phi += phi;
 }
 
 RUBBLE_GRAVITY_CLONES
@@ -260,10 +252,12 @@ void p2p_portable(const double* sx, const double* sy, const double* sz, const do
   p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
+// The float clones sum kFloatBlock sources at a time, each block's sums added to acc in double.
 RUBBLE_GRAVITY_CLONES
 void p2p_single_portable(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi,
                          float yi, float zi, float eps2, Accum& acc) {
-  p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+  for (std::size_t b = 0; b < n; b += kFloatBlock)
+    p2p_loop(sx + b, sy + b, sz + b, sm + b, std::min(kFloatBlock, n - b), xi, yi, zi, eps2, acc);
 }
 
 /// The quadrupole kernel's loop (formulas in kernels.hpp), in double or float; inlined like
@@ -274,44 +268,38 @@ __attribute__((always_inline)) inline void m2p_quadrupole_loop(const Real* cx, c
                                                                const Real* qxz, const Real* qyy, const Real* qyz,
                                                                const Real* qzz, std::size_t n, Real xi, Real yi,
                                                                Real zi, Real eps2, Accum& acc) {
-  // Float sums restart every kFloatBlock sources (added to acc in double); double runs one block.
-  constexpr std::size_t block = std::is_same_v<Real, float> ? kFloatBlock : std::numeric_limits<std::size_t>::max();
-  for (std::size_t begin = 0; begin < n;) {
-    const std::size_t end = n - begin > block ? begin + block : n;
-    Real ax = 0, ay = 0, az = 0, phi = 0;
+  Real ax = 0, ay = 0, az = 0, phi = 0;
 #pragma omp simd reduction(+ : ax, ay, az, phi)
-    for (std::size_t j = begin; j < end; ++j) {
-      const Real rx = xi - cx[j];
-      const Real ry = yi - cy[j];
-      const Real rz = zi - cz[j];
-      // Accepted cells are always well separated (distance > b_max / theta > 0): no guard needed.
-      const Real r2 = rx * rx + ry * ry + rz * rz + eps2;
-      const Real d1 = Real(1) / std::sqrt(r2);
-      const Real d2 = d1 * d1;
-      const Real d3 = d1 * d2;
-      const Real d5 = d3 * d2;
-      const Real d7 = d5 * d2;
-      // M r and r.M.r with the symmetric second moment.
-      const Real mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
-      const Real mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
-      const Real mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
-      const Real rmr = rx * mrx + ry * mry + rz * mrz;
-      const Real tr = qxx[j] + qyy[j] + qzz[j];
-      // a/(-G) = (m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr) r - 3 D^5 M r
-      const Real radial = cm[j] * d3 - Real(1.5) * d5 * tr + Real(7.5) * d7 * rmr;
-      const Real d5x3 = Real(3) * d5;
-      ax += radial * rx - d5x3 * mrx;
-      ay += radial * ry - d5x3 * mry;
-      az += radial * rz - d5x3 * mrz;
-      // phi/(-G) = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-      phi += cm[j] * d1 + Real(1.5) * d5 * rmr - Real(0.5) * d3 * tr;
-    }
-    acc.ax += ax;
-    acc.ay += ay;
-    acc.az += az;
-    acc.phi += phi;
-    begin = end;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Real rx = xi - cx[j];
+    const Real ry = yi - cy[j];
+    const Real rz = zi - cz[j];
+    // Accepted cells are always well separated (distance > b_max / theta > 0): no guard needed.
+    const Real r2 = rx * rx + ry * ry + rz * rz + eps2;
+    const Real d1 = Real(1) / std::sqrt(r2);
+    const Real d2 = d1 * d1;
+    const Real d3 = d1 * d2;
+    const Real d5 = d3 * d2;
+    const Real d7 = d5 * d2;
+    // M r and r.M.r with the symmetric second moment.
+    const Real mrx = qxx[j] * rx + qxy[j] * ry + qxz[j] * rz;
+    const Real mry = qxy[j] * rx + qyy[j] * ry + qyz[j] * rz;
+    const Real mrz = qxz[j] * rx + qyz[j] * ry + qzz[j] * rz;
+    const Real rmr = rx * mrx + ry * mry + rz * mrz;
+    const Real tr = qxx[j] + qyy[j] + qzz[j];
+    // a/(-G) = (m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr) r - 3 D^5 M r
+    const Real radial = cm[j] * d3 - Real(1.5) * d5 * tr + Real(7.5) * d7 * rmr;
+    const Real d5x3 = Real(3) * d5;
+    ax += radial * rx - d5x3 * mrx;
+    ay += radial * ry - d5x3 * mry;
+    az += radial * rz - d5x3 * mrz;
+    // phi/(-G) = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+    phi += cm[j] * d1 + Real(1.5) * d5 * rmr - Real(0.5) * d3 * tr;
   }
+  acc.ax += ax;
+  acc.ay += ay;
+  acc.az += az;
+  acc.phi += phi;
 }
 
 RUBBLE_GRAVITY_CLONES
@@ -319,7 +307,9 @@ void m2p_quadrupole_single_portable(const float* cx, const float* cy, const floa
                                     const float* qxx, const float* qxy, const float* qxz, const float* qyy,
                                     const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
                                     float eps2, Accum& acc) {
-  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+  for (std::size_t b = 0; b < n; b += kFloatBlock)
+    m2p_quadrupole_loop(cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b,
+                        std::min(kFloatBlock, n - b), xi, yi, zi, eps2, acc);
 }
 
 }  // namespace
