@@ -28,9 +28,10 @@
 
 namespace rubble::gravity::detail {
 
-/// Sources per float accumulation: the float lanes are folded into double every kFloatBlock
-/// sources, so that no float sum has more than kFloatBlock / lanes terms and its rounding error
-/// stays ~1e-7 relative however long the interaction list.
+/// Sources per float accumulation: p2p_single and m2p_quadrupole_single hand their kernels blocks
+/// of kFloatBlock sources and add each block's lane sums in double, so that no float sum has more
+/// than kFloatBlock / lanes terms and its rounding error stays ~1e-7 relative however long the
+/// interaction list.
 constexpr std::size_t kFloatBlock = 1024;
 
 #ifdef RUBBLE_GRAVITY_AVX512
@@ -105,15 +106,18 @@ __attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
   return _mm512_mul_ps(y, _mm512_fnmadd_ps(half_x, _mm512_mul_ps(y, y), _mm512_set1_ps(1.5F)));
 }
 
-/// total + the 16 float lanes of v, widened to double and added pairwise (lane k and k + 8).
-__attribute__((target("avx512f"))) inline __m512d add_widened(__m512d total, __m512 v) {
+/// Mask of the first `count` (< 16) float lanes.
+inline __mmask16 tail_mask16(std::size_t count) { return static_cast<__mmask16>((1u << count) - 1u); }
+
+/// Sum of the 16 float lanes of v in double: widened, lane k added to lane k + 8, then lane_sum.
+__attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
   // The maskz forms: GCC 12's plain cast/extract/convert intrinsics trip -Wmaybe-uninitialized.
   const __m512d bits = _mm512_castps_pd(v);
   const __m256 low = _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(static_cast<__mmask8>(0xf), bits, 0));
   const __m256 high = _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(static_cast<__mmask8>(0xf), bits, 1));
   const __m512d sum = _mm512_add_pd(_mm512_maskz_cvtps_pd(static_cast<__mmask8>(0xff), low),
                                     _mm512_maskz_cvtps_pd(static_cast<__mmask8>(0xff), high));
-  return _mm512_add_pd(total, sum);
+  return lane_sum(sum);
 }
 
 __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const float* sy, const float* sz,
@@ -121,36 +125,27 @@ __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const
                                                           float eps2, Accum& acc) {
   const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
   const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
-  __m512d total_x = _mm512_setzero_pd(), total_y = total_x, total_z = total_x, total_phi = total_x;
-  for (std::size_t begin = 0; begin < n; begin += kFloatBlock) {
-    const std::size_t end = std::min(n, begin + kFloatBlock);
-    __m512 ax = zero, ay = zero, az = zero, phi = zero;
-    for (std::size_t j = begin; j < end; j += 16) {
-      const __mmask16 live =
-          end - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (end - j)) - 1u);
-      const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
-      const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
-      const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
-      const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
-      const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
-      const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
-      const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
-      const __m512 m_inv = _mm512_mul_ps(m, inv);
-      const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
-      ax = _mm512_fmadd_ps(dx, m_inv3, ax);
-      ay = _mm512_fmadd_ps(dy, m_inv3, ay);
-      az = _mm512_fmadd_ps(dz, m_inv3, az);
-      phi = _mm512_add_ps(phi, m_inv);
-    }
-    total_x = add_widened(total_x, ax);
-    total_y = add_widened(total_y, ay);
-    total_z = add_widened(total_z, az);
-    total_phi = add_widened(total_phi, phi);
+  __m512 ax = zero, ay = zero, az = zero, phi = zero;
+  for (std::size_t j = 0; j < n; j += 16) {
+    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : tail_mask16(n - j);
+    const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
+    const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
+    const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
+    const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
+    const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
+    const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
+    const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
+    const __m512 m_inv = _mm512_mul_ps(m, inv);
+    const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
+    ax = _mm512_fmadd_ps(dx, m_inv3, ax);
+    ay = _mm512_fmadd_ps(dy, m_inv3, ay);
+    az = _mm512_fmadd_ps(dz, m_inv3, az);
+    phi = _mm512_add_ps(phi, m_inv);
   }
-  acc.ax += lane_sum(total_x);
-  acc.ay += lane_sum(total_y);
-  acc.az += lane_sum(total_z);
-  acc.phi += lane_sum(total_phi);
+  acc.ax += lane_sum_single(ax);
+  acc.ay += lane_sum_single(ay);
+  acc.az += lane_sum_single(az);
+  acc.phi += lane_sum_single(phi);
 }
 
 __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float* cx, const float* cy, const float* cz,
@@ -163,52 +158,43 @@ __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float
   const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
   const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
                c05 = _mm512_set1_ps(0.5F);
-  __m512d total_x = _mm512_setzero_pd(), total_y = total_x, total_z = total_x, total_phi = total_x;
-  for (std::size_t begin = 0; begin < n; begin += kFloatBlock) {
-    const std::size_t end = std::min(n, begin + kFloatBlock);
-    __m512 ax = zero, ay = zero, az = zero, phi = zero;
-    for (std::size_t j = begin; j < end; j += 16) {
-      const __mmask16 live =
-          end - j >= 16 ? static_cast<__mmask16>(0xffff) : static_cast<__mmask16>((1u << (end - j)) - 1u);
-      // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
-      const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
-      const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
-      const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
-      const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
-      const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
-                   mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
-                   myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
-      const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
-      const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
-      const __m512 d2 = _mm512_mul_ps(d1, d1);
-      const __m512 d3 = _mm512_mul_ps(d1, d2);
-      const __m512 d5 = _mm512_mul_ps(d3, d2);
-      const __m512 d7 = _mm512_mul_ps(d5, d2);
-      const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
-      const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
-      const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
-      const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
-      const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
-      // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
-      const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
-                                            _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
-      const __m512 d5x3 = _mm512_mul_ps(c3, d5);
-      ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
-      ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
-      az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
-      // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-      phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
-                                                _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
-    }
-    total_x = add_widened(total_x, ax);
-    total_y = add_widened(total_y, ay);
-    total_z = add_widened(total_z, az);
-    total_phi = add_widened(total_phi, phi);
+  __m512 ax = zero, ay = zero, az = zero, phi = zero;
+  for (std::size_t j = 0; j < n; j += 16) {
+    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : tail_mask16(n - j);
+    // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
+    const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
+    const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
+    const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
+    const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
+    const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
+                 mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
+                 myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
+    const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
+    const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
+    const __m512 d2 = _mm512_mul_ps(d1, d1);
+    const __m512 d3 = _mm512_mul_ps(d1, d2);
+    const __m512 d5 = _mm512_mul_ps(d3, d2);
+    const __m512 d7 = _mm512_mul_ps(d5, d2);
+    const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
+    const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
+    const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
+    const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
+    const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
+    // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+    const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
+                                          _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
+    const __m512 d5x3 = _mm512_mul_ps(c3, d5);
+    ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
+    ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
+    az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
+    // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+    phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
+                                              _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
   }
-  acc.ax += lane_sum(total_x);
-  acc.ay += lane_sum(total_y);
-  acc.az += lane_sum(total_z);
-  acc.phi += lane_sum(total_phi);
+  acc.ax += lane_sum_single(ax);
+  acc.ay += lane_sum_single(ay);
+  acc.az += lane_sum_single(az);
+  acc.phi += lane_sum_single(phi);
 }
 
 }  // namespace
@@ -252,12 +238,10 @@ void p2p_portable(const double* sx, const double* sy, const double* sz, const do
   p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
-// The float clones sum kFloatBlock sources at a time, each block's sums added to acc in double.
 RUBBLE_GRAVITY_CLONES
 void p2p_single_portable(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi,
                          float yi, float zi, float eps2, Accum& acc) {
-  for (std::size_t b = 0; b < n; b += kFloatBlock)
-    p2p_loop(sx + b, sy + b, sz + b, sm + b, std::min(kFloatBlock, n - b), xi, yi, zi, eps2, acc);
+  p2p_loop(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
 /// The quadrupole kernel's loop (formulas in kernels.hpp), in double or float; inlined like
@@ -307,9 +291,7 @@ void m2p_quadrupole_single_portable(const float* cx, const float* cy, const floa
                                     const float* qxx, const float* qxy, const float* qxz, const float* qyy,
                                     const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
                                     float eps2, Accum& acc) {
-  for (std::size_t b = 0; b < n; b += kFloatBlock)
-    m2p_quadrupole_loop(cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b,
-                        std::min(kFloatBlock, n - b), xi, yi, zi, eps2, acc);
+  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 }  // namespace
@@ -337,22 +319,37 @@ void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const 
   m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
+// The float kernels run kFloatBlock sources at a time; each block's sums go into acc in double.
+
 void p2p_single(const float* sx, const float* sy, const float* sz, const float* sm, std::size_t n, float xi, float yi,
                 float zi, float eps2, Accum& acc) {
+  for (std::size_t b = 0; b < n; b += kFloatBlock) {
+    const std::size_t count = std::min(kFloatBlock, n - b);
 #ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_single_avx512(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+    if (cpu_has_avx512()) {
+      p2p_single_avx512(sx + b, sy + b, sz + b, sm + b, count, xi, yi, zi, eps2, acc);
+      continue;
+    }
 #endif
-  p2p_single_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+    p2p_single_portable(sx + b, sy + b, sz + b, sm + b, count, xi, yi, zi, eps2, acc);
+  }
 }
 
 void m2p_quadrupole_single(const float* cx, const float* cy, const float* cz, const float* cm, const float* qxx,
                            const float* qxy, const float* qxz, const float* qyy, const float* qyz, const float* qzz,
                            std::size_t n, float xi, float yi, float zi, float eps2, Accum& acc) {
+  for (std::size_t b = 0; b < n; b += kFloatBlock) {
+    const std::size_t count = std::min(kFloatBlock, n - b);
 #ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512())
-    return m2p_quadrupole_single_avx512(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+    if (cpu_has_avx512()) {
+      m2p_quadrupole_single_avx512(cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b,
+                                   count, xi, yi, zi, eps2, acc);
+      continue;
+    }
 #endif
-  m2p_quadrupole_single_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+    m2p_quadrupole_single_portable(cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b,
+                                   count, xi, yi, zi, eps2, acc);
+  }
 }
 
 }  // namespace rubble::gravity::detail
