@@ -492,7 +492,7 @@ inline void tree_p2p(const float* x, const float* y, const float* z, const float
 }
 template <typename Lists>
 inline void tree_m2p(const Lists& l, const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
-  if constexpr (std::is_same_v<decltype(l.cm[0]), const double&>) {
+  if constexpr (std::is_same_v<typename decltype(l.cm)::value_type, double>) {
     detail::m2p_quadrupole(l.cx.data(), l.cy.data(), l.cz.data(), l.cm.data(), l.xx.data(), l.xy.data(), l.xz.data(),
                            l.yy.data(), l.yz.data(), l.zz.data(), l.cm.size(), target[0], target[1], target[2], eps2,
                            acc);
