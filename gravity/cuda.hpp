@@ -1,7 +1,8 @@
 #pragma once
-// Optional CUDA backend of rubble::gravity: the exact direct sum on a GPU, in double precision.
-// The functions always exist; without the backend (no CUDA toolkit at configure time) or without
-// a GPU at run time, available() is false and direct_sum() throws BackendUnavailable.
+// Optional CUDA backend of rubble::gravity: the exact direct sum and the Barnes-Hut tree walk on a
+// GPU, in double precision. The functions always exist; without the backend (no CUDA toolkit at
+// configure time) or without a GPU at run time, available() is false and direct_sum() and
+// tree_field() throw BackendUnavailable.
 
 #include <span>
 #include <string>
@@ -28,5 +29,16 @@ std::string unavailable_reason();
 /// compute_field() with Backend::cuda and Method::direct calls it.
 void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
                 std::span<double> accelerations, std::span<double> potential);
+
+/// Barnes-Hut field on device 0: the tree is built on the host (gravity::Tree, options.leaf_size,
+/// options.group_size), the walk and the interaction kernels run on the GPU in double precision with
+/// the CPU tree's opening criterion, groups and multipoles, so both accept the same nodes and make
+/// the same approximation (results differ by rounding: summation order, the CPU's approximate
+/// 1/sqrt). Same run to run. options.precision must be double (single-precision kernels are a CPU
+/// option). Returns build_seconds (host tree), walk_seconds (GPU walk) and transfer_seconds. Throws
+/// BackendUnavailable when !available(), GravityError on bad input or a CUDA error.
+/// compute_field() with Backend::cuda and Method::tree calls it.
+FieldTimings tree_field(const GravityOptions& options, std::span<const double> positions,
+                        std::span<const double> masses, std::span<double> accelerations, std::span<double> potential);
 
 }  // namespace rubble::gravity::cuda

@@ -1,4 +1,4 @@
-// Built instead of gravity/cuda/direct_sum.cu when no CUDA compiler was found.
+// Built instead of gravity/cuda/*.cu when no CUDA compiler was found.
 #include "gravity/cuda.hpp"
 
 namespace rubble::gravity::cuda {
@@ -11,6 +11,10 @@ std::string unavailable_reason() {
 }
 void direct_sum(const GravityOptions&, std::span<const double>, std::span<const double>, std::span<double>,
                 std::span<double>) {
+  throw BackendUnavailable("CUDA backend: " + unavailable_reason());
+}
+FieldTimings tree_field(const GravityOptions&, std::span<const double>, std::span<const double>, std::span<double>,
+                        std::span<double>) {
   throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }
 

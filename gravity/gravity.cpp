@@ -42,10 +42,9 @@ std::string to_string(KernelPrecision precision) {
 std::string backend_unavailable_reason(const GravityOptions& options) {
   if (options.backend == Backend::cpu) return {};
   std::string reason;
-  // The GPU Barnes-Hut is not written yet (gravity/README.md): only the direct sum has a CUDA
-  // kernel. Said first, since a GPU would not help.
-  if (options.method == Method::tree)
-    reason = "the tree method has no CUDA implementation yet (use method direct, or backend cpu)";
+  // The GPU tree's kernels are double only. Said first, since a GPU would not help.
+  if (options.method == Method::tree && options.precision != KernelPrecision::double_precision)
+    reason = "the GPU tree computes in double precision only (precision single is a CPU option)";
   if (!cuda::available()) {
     if (!reason.empty()) reason += "; ";
     reason += cuda::unavailable_reason();
@@ -98,7 +97,9 @@ FieldTimings compute_field(const GravityOptions& options, std::span<const double
   validate(options, positions, masses, accelerations, potential);
   require_backend(options);
   FieldTimings t;
-  if (options.backend == Backend::cuda) {  // method direct: require_backend() refused the tree
+  if (options.backend == Backend::cuda && options.method == Method::tree)
+    return cuda::tree_field(options, positions, masses, accelerations, potential);
+  if (options.backend == Backend::cuda) {
     const auto t0 = std::chrono::steady_clock::now();
     cuda::direct_sum(options, positions, masses, accelerations, potential);
     t.walk_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -25,7 +25,8 @@ enum class Method {
 enum class Backend {
   cpu,  ///< this library's OpenMP code (always available)
   cuda  ///< an NVIDIA GPU through the CUDA backend (gravity/cuda/): only when the library was built
-        ///< with it and a GPU is present; today the direct sum only (no GPU tree yet)
+        ///< with it and a GPU is present; the direct sum, and the tree (built on the host, walked
+        ///< on the GPU, double precision only)
 };
 
 /// Arithmetic of the tree's interaction kernels.
@@ -71,12 +72,15 @@ struct GravityOptions {
   KernelPrecision precision = KernelPrecision::double_precision;
 };
 
-/// Wall-clock seconds spent in the two phases of an evaluation (direct sum: walk only).
+/// Wall-clock seconds spent in the phases of an evaluation (direct sum: walk only).
 struct FieldTimings {
-  /// Tree construction: Morton keys, sort, nodes, moments.
+  /// Tree construction: Morton keys, sort, nodes, moments (on the host, for both backends).
   double build_seconds = 0;
   /// Field evaluation (tree walk + interaction kernels, or the direct sum).
   double walk_seconds = 0;
+  /// Backend::cuda tree: device memory allocation and the copies to and from the GPU (not in
+  /// walk_seconds). 0 on the CPU.
+  double transfer_seconds = 0;
 };
 
 /// Thrown for invalid arguments (sizes, theta <= 0, order not in {1, 2}, ...).

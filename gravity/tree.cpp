@@ -1,5 +1,7 @@
 #include "gravity/tree.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <bit>
 #include <chrono>
@@ -44,21 +46,49 @@ constexpr std::size_t kParallelWalkMin = std::size_t{1} << 14;  // 16 384 target
 constexpr std::size_t kParallelKeysMin = std::size_t{1} << 18;  // 262 144 particles
 
 /// Stable LSD radix sort of (key, index) pairs on 8-bit digits. Stable + keys computed from the
-/// positions only => the order does not depend on anything but the input (determinism).
+/// positions only => the order does not depend on anything but the input (determinism). From
+/// kParallelKeysMin keys each pass runs on all threads: each counts the digits of its own
+/// contiguous slice, and scatters the slice to the offsets of its digits, after those of every
+/// smaller digit and of the same digit in the slices before its own. That is exactly where the
+/// serial stable pass puts each key, so the result is the same for any thread count.
 void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& idx) {
   const std::size_t n = keys.size();
   std::vector<std::uint64_t> k2(n);
   std::vector<std::uint32_t> i2(n);
+  const bool parallel = n >= kParallelKeysMin;
+  const int slices = parallel ? omp_get_max_threads() : 1;
+  // counts[s][d]: keys of slice s with digit d; then the first position of those keys.
+  std::vector<std::array<std::size_t, 256>> counts(static_cast<std::size_t>(slices));
+  const auto slice_begin = [&](int s) { return n * static_cast<std::size_t>(s) / static_cast<std::size_t>(slices); };
   for (int shift = 0; shift < 64; shift += 8) {
-    std::size_t count[257] = {};
-    for (std::size_t i = 0; i < n; ++i) ++count[((keys[i] >> shift) & 0xff) + 1];
+#pragma omp parallel for schedule(static, 1) num_threads(slices) if (parallel)
+    for (int s = 0; s < slices; ++s) {
+      auto& c = counts[static_cast<std::size_t>(s)];
+      c.fill(0);
+      for (std::size_t i = slice_begin(s); i < slice_begin(s + 1); ++i) ++c[(keys[i] >> shift) & 0xff];
+    }
     // A digit shared by all keys leaves the order unchanged: skip the pass.
-    if (std::any_of(count + 1, count + 257, [n](std::size_t c) { return c == n; })) continue;
-    for (int d = 0; d < 256; ++d) count[d + 1] += count[d];
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t dst = count[(keys[i] >> shift) & 0xff]++;
-      k2[dst] = keys[i];
-      i2[dst] = idx[i];
+    bool constant = false;
+    std::size_t start = 0;
+    for (std::size_t d = 0; d < 256; ++d) {
+      std::size_t digit_total = 0;
+      for (const auto& c : counts) digit_total += c[d];
+      if (digit_total == n) constant = true;
+      for (auto& c : counts) {
+        const std::size_t count = c[d];
+        c[d] = start;
+        start += count;
+      }
+    }
+    if (constant) continue;
+#pragma omp parallel for schedule(static, 1) num_threads(slices) if (parallel)
+    for (int s = 0; s < slices; ++s) {
+      auto& next = counts[static_cast<std::size_t>(s)];
+      for (std::size_t i = slice_begin(s); i < slice_begin(s + 1); ++i) {
+        const std::size_t dst = next[(keys[i] >> shift) & 0xff]++;
+        k2[dst] = keys[i];
+        i2[dst] = idx[i];
+      }
     }
     keys.swap(k2);
     idx.swap(i2);
@@ -178,7 +208,10 @@ void Tree::load_particles(std::span<const double> positions, std::span<const dou
   y_.resize(n);
   z_.resize(n);
   m_.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
+  const auto sn = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) if (n >= kParallelKeysMin)
+  for (std::ptrdiff_t sk = 0; sk < sn; ++sk) {
+    const auto k = static_cast<std::size_t>(sk);
     const std::size_t i = order_[k];
     x_[k] = positions[3 * i];
     y_[k] = positions[3 * i + 1];
@@ -429,8 +462,8 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   std::vector<WalkNode> walk(nodes_.size());
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const Node& nd = nodes_[i];
-    const double r_open = std::max(nd.bmax, nd.size * inv_theta + nd.delta);
-    walk[i] = {nd.cx, nd.cy, nd.cz, r_open * r_open, nd.mass, nd.begin, nd.count, nd.first_child, nd.num_children};
+    walk[i] = {nd.cx,    nd.cy,          nd.cz,          opening_radius2(nd, inv_theta), nd.mass, nd.begin,
+               nd.count, nd.first_child, nd.num_children};
   }
   const bool single = options.precision == KernelPrecision::single_precision;
   // Single precision: lengths in units of the root's size, masses in units of the total mass.

@@ -9,6 +9,7 @@
 // When particles moved a little, tree.refit(positions, masses) keeps the order and the topology
 // and only recomputes boxes and moments (still exact criterion, somewhat more interactions).
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -20,8 +21,9 @@
 namespace rubble::gravity {
 
 /// A Barnes-Hut octree: particles are reordered along a Morton (Z-order) curve so that every node
-/// owns a contiguous range of them. Build is sequential apart from key computation and fully
-/// deterministic; evaluate() is parallel over groups of targets.
+/// owns a contiguous range of them. Build is parallel in its keys, sort and particle gather (from
+/// 2^18 particles) and sequential in its nodes and moments, and fully deterministic (the same tree
+/// for any thread count); evaluate() is parallel over groups of targets.
 class Tree {
  public:
   /// One octree node. Children of a node are contiguous in the node array, after their parent.
@@ -36,6 +38,21 @@ class Tree {
     std::uint32_t count = 0;           ///< number of particles
     std::int32_t first_child = -1;     ///< index of the first child, -1 for a leaf
     std::int32_t num_children = 0;     ///< number of (non-empty) children, 0 for a leaf
+  };
+
+  /// Targets that walk the tree together: a contiguous range of sorted particles and the tight
+  /// box of their positions. A group is the node with at most group_size particles, a run of small
+  /// sibling nodes packed up to group_size, or a leaf larger than that (coincident particles).
+  struct Group {
+    std::uint32_t begin = 0;           ///< first target (in sorted order)
+    std::uint32_t count = 0;           ///< number of targets
+    std::array<double, 3> lo{}, hi{};  ///< tight bounding box of the targets [m]
+  };
+
+  /// The particles of the last build() in Morton order: index k is order()[k] in the caller's arrays.
+  struct SortedParticles {
+    std::span<const double> x, y, z;  ///< positions [m]
+    std::span<const double> m;        ///< masses [kg]
   };
 
   /// Work counters of the last evaluate() (summed over targets).
@@ -70,6 +87,24 @@ class Tree {
   const std::vector<std::uint32_t>& order() const { return order_; }
   /// Counters of the last evaluate().
   const Stats& stats() const { return stats_; }
+  /// Target groups of the last build() (or refit()), in walk order. With nodes(), second_moments()
+  /// and sorted_particles() they are everything a walk needs: the GPU walk (gravity/cuda/) reads
+  /// the tree through them.
+  const std::vector<Group>& groups() const { return groups_; }
+  /// Second moments M_ab = sum_k m_k (x_k - c)_a (x_k - c)_b of each node about its centre of mass,
+  /// as Mxx Mxy Mxz Myy Myz Mzz [kg m^2], indexed like nodes().
+  const std::vector<std::array<double, 6>>& second_moments() const { return second_moments_; }
+  /// Positions and masses in Morton order.
+  SortedParticles sorted_particles() const { return {x_, y_, z_, m_}; }
+
+  /// Squared opening radius of a node for opening angle theta: max(l / theta + delta, b_max)^2
+  /// (gravity/README.md, "Opening criterion"). A node is accepted as a multipole for a group when
+  /// the squared distance from its centre of mass to the group's box exceeds this value. One
+  /// function for the CPU and the GPU walks, so that both accept the same nodes.
+  static double opening_radius2(const Node& node, double inv_theta) {
+    const double r_open = std::max(node.bmax, node.size * inv_theta + node.delta);
+    return r_open * r_open;
+  }
 
  private:
   /// Copies the particles into x_, y_, z_, m_ in Morton order (order_).
@@ -91,11 +126,6 @@ class Tree {
   std::vector<double> x_, y_, z_, m_;  // particles in Morton order (SoA)
   std::vector<Node> nodes_;
   std::vector<std::array<double, 6>> second_moments_;  // Mxx Mxy Mxz Myy Myz Mzz per node
-  /// Targets that walk the tree together: a contiguous range of sorted particles and its box.
-  struct Group {
-    std::uint32_t begin = 0, count = 0;
-    std::array<double, 3> lo{}, hi{};
-  };
   std::vector<Group> groups_;
   /// The interaction lists of one group in the kernels' precision (defined in tree.cpp).
   template <typename Real>

@@ -3,12 +3,18 @@
 //   bench_gravity [--n 1000,10000,100000,1000000] [--theta 0.3,0.5,0.7,1.0] [--order 1,2]
 //                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
 //                 [--csv FILE] [--direct-rate] [--leaf-size 16] [--group-size 64]
-//                 [--precision double,single]
+//                 [--precision double,single] [--backend cpu,cuda]
 //
 // Each tree figure is the best of --reps evaluations (tree build included), as wall-clock seconds
 // and as process CPU seconds (all threads; on a loaded machine the latter measures the work). Errors are the
 // per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
 // (N <= 100000) or over --subset random targets (larger N).
+//
+// --backend cuda: the tree built on the host (--threads sets its OpenMP threads), walked on the GPU;
+// its seconds include the build and the transfers ("copies s": allocation and copies to and from
+// the GPU; "walk s" the GPU walk alone). With
+// --direct-rate, the GPU direct sum's pair rate (the first call, which creates the CUDA context, is
+// not timed: every figure is the best of --reps after one warm-up).
 
 #include <omp.h>
 
@@ -102,6 +108,24 @@ std::vector<g::KernelPrecision> parse_precisions(const std::string& text) {
   return out;
 }
 
+/// "cpu,cuda" -> the backends, in that order.
+std::vector<g::Backend> parse_backends(const std::string& text) {
+  std::vector<g::Backend> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item == "cpu")
+      out.push_back(g::Backend::cpu);
+    else if (item == "cuda")
+      out.push_back(g::Backend::cuda);
+    else {
+      std::fprintf(stderr, "--backend: expected cpu or cuda, got '%s'\n", item.c_str());
+      std::exit(2);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 /// The command line's settings (see the usage at the top of this file).
@@ -112,6 +136,7 @@ struct Arguments {
   std::string dist = "uniform", csv_path;
   bool direct_rate = false;
   std::vector<g::KernelPrecision> precisions{g::KernelPrecision::double_precision};
+  std::vector<g::Backend> backends{g::Backend::cpu};
 };
 
 /// Reads the command line; exits with code 2 on an unknown argument or a missing value.
@@ -150,6 +175,8 @@ Arguments parse_arguments(int argc, char** argv) {
       args.direct_rate = true;
     else if (arg == "--precision")
       args.precisions = parse_precisions(next());
+    else if (arg == "--backend")
+      args.backends = parse_backends(next());
     else {
       std::fprintf(stderr, "unknown argument %s\n", arg.c_str());
       std::exit(2);
@@ -174,68 +201,103 @@ std::vector<double> relative_errors(const std::vector<double>& acc, const std::v
   return err;
 }
 
-/// --direct-rate: pair interactions per second of the exact direct sum, per thread count.
+/// --direct-rate: pair interactions per second of the exact direct sum, per backend and thread count.
 void run_direct_rate(const Arguments& args) {
-  const auto& [ns, threads, reps, dist] = std::tie(args.ns, args.threads, args.reps, args.dist);
+  const auto& [ns, threads, reps, dist, backends] =
+      std::tie(args.ns, args.threads, args.reps, args.dist, args.backends);
   std::printf(
-      "| N | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
-      "|\n|---|---|---|---|---|---|---|\n");
+      "| N | backend | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
+      "|\n|---|---|---|---|---|---|---|---|\n");
   for (double nd : ns) {
     const auto n = static_cast<std::size_t>(nd);
     std::vector<double> pos, mass, acc(3 * n), pot(n);
     make_particles(dist, n, 42, pos, mass);
-    g::GravityOptions o;
-    o.method = g::Method::direct;
-    o.G = 1.0;
-    for (double t : threads) {
-      omp_set_num_threads(static_cast<int>(t));
-      double best = 1e300, best_cpu = 1e300;
-      for (int r = 0; r < reps; ++r) {
-        const double t0 = now(), c0 = cpu_now();
-        g::direct_sum(o, pos, mass, acc, pot);
-        best = std::min(best, now() - t0);
-        best_cpu = std::min(best_cpu, cpu_now() - c0);
+    for (g::Backend backend : backends) {
+      g::GravityOptions o;
+      o.method = g::Method::direct;
+      o.backend = backend;
+      o.G = 1.0;
+      if (backend == g::Backend::cuda) g::compute_field(o, pos, mass, acc, pot);  // warm-up: CUDA context
+      // The GPU does not use the host's threads: one row.
+      const std::vector<double> thread_counts = backend == g::Backend::cuda ? std::vector<double>{1} : threads;
+      for (double t : thread_counts) {
+        omp_set_num_threads(static_cast<int>(t));
+        double best = 1e300, best_cpu = 1e300;
+        for (int r = 0; r < reps; ++r) {
+          const double t0 = now(), c0 = cpu_now();
+          g::compute_field(o, pos, mass, acc, pot);
+          best = std::min(best, now() - t0);
+          best_cpu = std::min(best_cpu, cpu_now() - c0);
+        }
+        const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
+        std::printf("| %zu | %s | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, g::to_string(backend).c_str(),
+                    static_cast<int>(t), best, best_cpu, pairs / best, pairs / best / t, pairs / best_cpu);
+        std::fflush(stdout);
       }
-      const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
-      std::printf("| %zu | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, static_cast<int>(t), best, best_cpu,
-                  pairs / best, pairs / best / t, pairs / best_cpu);
-      std::fflush(stdout);
     }
   }
 }
 
+/// One tree row: the best of reps evaluations of options o, with errors against aref.
+void run_tree_row(const Arguments& args, const g::GravityOptions& o, int threads, const std::vector<double>& pos,
+                  const std::vector<double>& mass, const std::vector<std::size_t>& targets,
+                  const std::vector<double>& aref, std::ofstream& csv) {
+  const std::size_t n = mass.size();
+  std::vector<double> acc(3 * n), pot(n);
+  omp_set_num_threads(threads);
+  if (o.backend == g::Backend::cuda) g::compute_field(o, pos, mass, acc, pot);  // warm-up: CUDA context
+  double best = 1e300, bb = 0, bw = 0, bt = 0, best_cpu = 1e300;
+  for (int r = 0; r < args.reps; ++r) {
+    const double t0 = now(), c0 = cpu_now();
+    const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
+    const double dt = now() - t0;
+    best_cpu = std::min(best_cpu, cpu_now() - c0);
+    if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds, bt = ft.transfer_seconds;
+  }
+  std::vector<double> err = relative_errors(acc, aref, targets);
+  const double med = percentile(err, 0.5), p99 = percentile(err, 0.99), mx = *std::max_element(err.begin(), err.end());
+  const std::string precision = g::to_string(o.precision), backend = g::to_string(o.backend);
+  std::printf("| %s | %zu | %.2g | %d | %s | %s | %d | %.4g | %.4g | %.3g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
+              args.dist.c_str(), n, o.theta, o.order, precision.c_str(), backend.c_str(), threads, best, best_cpu, bb,
+              bw, bt, med, p99, mx);
+  std::fflush(stdout);
+  if (csv.is_open())
+    csv << args.dist << ',' << n << ',' << o.theta << ',' << o.order << ',' << threads << ',' << best << ',' << best_cpu
+        << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << ',' << precision << ',' << backend << ','
+        << bt << '\n';
+}
+
 int main(int argc, char** argv) {
   const Arguments args = parse_arguments(argc, argv);
-  const auto& [ns, thetas, orders, threads, reps, leaf_size, group_size, subset, dist, csv_path, direct_rate,
-               precisions] = args;
   std::ofstream csv;
-  if (!csv_path.empty()) {
-    csv.open(csv_path);
-    csv << "dist,n,theta,order,threads,seconds,cpu_seconds,build_seconds,walk_seconds,median,p99,max,precision\n";
+  if (!args.csv_path.empty()) {
+    csv.open(args.csv_path);
+    csv << "dist,n,theta,order,threads,seconds,cpu_seconds,build_seconds,walk_seconds,median,p99,max,precision,"
+           "backend,transfer_seconds\n";
   }
-  const int max_threads = static_cast<int>(*std::max_element(threads.begin(), threads.end()));
+  const int max_threads = static_cast<int>(*std::max_element(args.threads.begin(), args.threads.end()));
 
-  if (direct_rate) {
+  if (args.direct_rate) {
     run_direct_rate(args);
     return 0;
   }
 
   std::printf(
-      "| dist | N | θ | order | precision | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | median | "
-      "p99 | max |\n",
-      reps);
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (double nd : ns) {
+      "| dist | N | θ | order | precision | backend | threads | s/eval (best of %d) | CPU s/eval | build s | walk s | "
+      "copies s | median | p99 | max |\n",
+      args.reps);
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (double nd : args.ns) {
     const auto n = static_cast<std::size_t>(nd);
     std::vector<double> pos, mass;
-    make_particles(dist, n, 42, pos, mass);
+    make_particles(args.dist, n, 42, pos, mass);
     // Exact reference on all targets, or on a random subset for large N.
     std::vector<std::size_t> targets(n);
     std::iota(targets.begin(), targets.end(), std::size_t{0});
     if (n > 100000) {
       std::mt19937_64 rng(7);
       std::shuffle(targets.begin(), targets.end(), rng);
-      targets.resize(std::min(subset, n));
+      targets.resize(std::min(args.subset, n));
     }
     g::GravityOptions ref;
     ref.method = g::Method::direct;
@@ -243,41 +305,26 @@ int main(int argc, char** argv) {
     std::vector<double> aref(3 * targets.size());
     omp_set_num_threads(max_threads);
     g::direct_sum_targets(ref, pos, mass, targets, aref, {});
-    for (double order : orders)
-      for (double theta : thetas)
-        for (g::KernelPrecision precision : precisions) {
-          g::GravityOptions o;
-          o.precision = precision;
-          o.method = g::Method::tree;
-          o.G = 1.0;
-          o.theta = theta;
-          o.order = static_cast<int>(order);
-          o.leaf_size = leaf_size;
-          o.group_size = group_size;
-          std::vector<double> acc(3 * n), pot(n);
-          for (double t : threads) {
-            omp_set_num_threads(static_cast<int>(t));
-            double best = 1e300, bb = 0, bw = 0, best_cpu = 1e300;
-            for (int r = 0; r < reps; ++r) {
-              const double t0 = now(), c0 = cpu_now();
-              const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
-              const double dt = now() - t0;
-              best_cpu = std::min(best_cpu, cpu_now() - c0);
-              if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds;
+    for (double order : args.orders)
+      for (double theta : args.thetas)
+        for (g::KernelPrecision precision : args.precisions)
+          for (g::Backend backend : args.backends) {
+            g::GravityOptions o;
+            o.precision = precision;
+            o.backend = backend;
+            o.method = g::Method::tree;
+            o.G = 1.0;
+            o.theta = theta;
+            o.order = static_cast<int>(order);
+            o.leaf_size = args.leaf_size;
+            o.group_size = args.group_size;
+            if (const std::string why = g::backend_unavailable_reason(o); !why.empty()) {
+              std::fprintf(stderr, "skipped: backend %s, precision %s: %s\n", g::to_string(backend).c_str(),
+                           g::to_string(precision).c_str(), why.c_str());
+              continue;
             }
-            std::vector<double> err = relative_errors(acc, aref, targets);
-            const double med = percentile(err, 0.5), p99 = percentile(err, 0.99),
-                         mx = *std::max_element(err.begin(), err.end());
-            std::printf("| %s | %zu | %.2g | %d | %s | %d | %.4g | %.4g | %.3g | %.3g | %.2e | %.2e | %.2e |\n",
-                        dist.c_str(), n, theta, o.order, g::to_string(precision).c_str(), static_cast<int>(t), best,
-                        best_cpu, bb, bw, med, p99, mx);
-            std::fflush(stdout);
-            if (csv.is_open())
-              csv << dist << ',' << n << ',' << theta << ',' << o.order << ',' << t << ',' << best << ',' << best_cpu
-                  << ',' << bb << ',' << bw << ',' << med << ',' << p99 << ',' << mx << ',' << g::to_string(precision)
-                  << '\n';
+            for (double t : args.threads) run_tree_row(args, o, static_cast<int>(t), pos, mass, targets, aref, csv);
           }
-        }
   }
   return 0;
 }

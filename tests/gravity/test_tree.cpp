@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <random>
 #include <string>
 #include <utility>
@@ -274,6 +275,32 @@ TEST(Tree, BitIdenticalForOneAndTwoThreads) {
       EXPECT_EQ(std::memcmp(a1.data(), a3.data(), a1.size() * sizeof(double)), 0) << what;
       EXPECT_EQ(std::memcmp(phi1.data(), phi2.data(), phi1.size() * sizeof(double)), 0) << what;
     }
+  }
+  omp_set_num_threads(saved);
+}
+
+// From 2^18 particles the build sorts and gathers on all threads (tree.cpp, radix_sort): the
+// same permutation, nodes and moments for any thread count. Ties (equal keys) are where a sort
+// that is not stable, or slices put back in the wrong order, would differ.
+TEST(Tree, ParallelBuildIsTheSameForAnyThreadCount) {
+  Particles p = g::testing::uniform_sphere(300000, 1.0, 1.0, 53);
+  for (std::size_t i = 0; i + 1 < p.size(); i += 7)  // pairs of coincident particles: equal keys
+    for (std::size_t c = 0; c < 3; ++c) p.pos[3 * (i + 1) + c] = p.pos[3 * i + c];
+  const int saved = omp_get_max_threads();
+  auto build = [&](int threads) {
+    omp_set_num_threads(threads);
+    auto tree = std::make_unique<g::Tree>(16, 64);
+    tree->build(p.pos, p.mass);
+    return tree;
+  };
+  const auto t1 = build(1);
+  for (int threads : {2, 3}) {
+    const auto t = build(threads);
+    EXPECT_EQ(t->order(), t1->order()) << threads << " threads";
+    ASSERT_EQ(t->nodes().size(), t1->nodes().size()) << threads << " threads";
+    EXPECT_EQ(std::memcmp(t->nodes().data(), t1->nodes().data(), t1->nodes().size() * sizeof(g::Tree::Node)), 0)
+        << threads << " threads";
+    EXPECT_EQ(t->second_moments(), t1->second_moments()) << threads << " threads";
   }
   omp_set_num_threads(saved);
 }
