@@ -7,6 +7,7 @@
 #include <span>
 #include <string>
 
+#include "gravity/cuda/tree.cuh"
 #include "gravity/gravity.hpp"
 
 namespace rubble::gravity::cuda {
@@ -30,15 +31,21 @@ std::string unavailable_reason();
 void direct_sum(const GravityOptions& options, std::span<const double> positions, std::span<const double> masses,
                 std::span<double> accelerations, std::span<double> potential);
 
-/// Barnes-Hut field on device 0: the tree is built on the host (gravity::Tree, options.leaf_size,
-/// options.group_size), the walk and the interaction kernels run on the GPU in double precision with
-/// the CPU tree's opening criterion, groups and multipoles, so both accept the same nodes and make
-/// the same approximation (results differ by rounding: summation order, the CPU's approximate
-/// 1/sqrt). Same run to run. options.precision must be double (single-precision kernels are a CPU
-/// option). Returns build_seconds (host tree), walk_seconds (GPU walk) and transfer_seconds. Throws
-/// BackendUnavailable when !available(), GravityError on bad input or a CUDA error.
-/// compute_field() with Backend::cuda and Method::tree calls it.
+/// Barnes-Hut field on device 0, built and walked there: the same tree as gravity::Tree::build
+/// (options.leaf_size, options.group_size: the same Morton order, nodes, moments to the last bit and
+/// groups), walked with the CPU tree's opening criterion in double precision, so both accept the
+/// same nodes and make the same approximation (results differ by rounding: summation order, the
+/// CPU's approximate 1/sqrt). Same run to run. options.precision must be double (single-precision
+/// kernels are a CPU option). Returns build_seconds (GPU build), walk_seconds (GPU walk) and
+/// transfer_seconds (the particles up, the field back). Throws BackendUnavailable when
+/// !available(), GravityError on bad input or a CUDA error. compute_field() with Backend::cuda and
+/// Method::tree calls it.
 FieldTimings tree_field(const GravityOptions& options, std::span<const double> positions,
                         std::span<const double> masses, std::span<double> accelerations, std::span<double> potential);
+
+/// The tree that tree_field() builds on device 0 (options.leaf_size, group_size, theta), copied
+/// back: for tests that compare it with gravity::Tree. Throws like tree_field().
+detail::BuiltTree built_tree(const GravityOptions& options, std::span<const double> positions,
+                             std::span<const double> masses);
 
 }  // namespace rubble::gravity::cuda

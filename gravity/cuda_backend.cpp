@@ -1,18 +1,15 @@
 // gravity/cuda.hpp on top of the raw CUDA entry points (built only with the CUDA backend).
-#include <memory>
+#include <algorithm>
+#include <cstdint>
+#include <limits>
 #include <stdexcept>
-#include <vector>
 
 #include "gravity/cuda.hpp"
 #include "gravity/cuda/direct_sum.cuh"
-#include "gravity/cuda/tree_walk.cuh"
-#include "gravity/tree.hpp"
+#include "gravity/cuda/tree.cuh"
 
 namespace rubble::gravity::cuda {
 namespace {
-
-/// Below this many items the host loops run on one thread (a parallel region costs more).
-constexpr std::ptrdiff_t kParallelMin = std::ptrdiff_t{1} << 16;
 
 double softening_length(const GravityOptions& options) {
   return options.softening.kind == Softening::Kind::plummer ? options.softening.length : 0.0;
@@ -23,34 +20,18 @@ void require_device() {
   if (detail::device_count(&reason) == 0) throw BackendUnavailable("CUDA backend: " + reason);
 }
 
-/// The tree's nodes as the GPU walk reads them, with this evaluation's opening radii.
-std::vector<detail::WalkNode> walk_nodes(const Tree& tree, double theta) {
-  const auto& nodes = tree.nodes();
-  const auto& moments = tree.second_moments();
-  std::vector<detail::WalkNode> out(nodes.size());
-  const double inv_theta = 1.0 / theta;
-  const auto count = static_cast<std::ptrdiff_t>(nodes.size());
-#pragma omp parallel for schedule(static) if (count >= kParallelMin)
-  for (std::ptrdiff_t si = 0; si < count; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    const Tree::Node& nd = nodes[i];
-    detail::WalkNode& w = out[i];
-    w.cx = nd.cx, w.cy = nd.cy, w.cz = nd.cz;
-    w.mass = nd.mass;
-    w.r_open2 = Tree::opening_radius2(nd, inv_theta);
-    for (int k = 0; k < 6; ++k) w.q[k] = moments[i][static_cast<std::size_t>(k)];
-    w.begin = nd.begin, w.count = nd.count;
-    w.first_child = nd.first_child, w.num_children = nd.num_children;
-  }
-  return out;
-}
-
-std::vector<detail::WalkGroup> walk_groups(const Tree& tree) {
-  std::vector<detail::WalkGroup> out;
-  out.reserve(tree.groups().size());
-  for (const Tree::Group& g : tree.groups())
-    out.push_back({{g.lo[0], g.lo[1], g.lo[2]}, {g.hi[0], g.hi[1], g.hi[2]}, g.begin, g.count});
-  return out;
+/// The particles' bounding box as Tree::build computes it (the same loop: min and max are exact, so
+/// the GPU's Morton keys are the host's).
+void bounding_box(std::span<const double> positions, double lo[3], double& extent) {
+  double hi[3] = {positions[0], positions[1], positions[2]};
+  for (int d = 0; d < 3; ++d) lo[d] = positions[static_cast<std::size_t>(d)];
+  const std::size_t n = positions.size() / 3;
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], positions[3 * i + d]);
+      hi[d] = std::max(hi[d], positions[3 * i + d]);
+    }
+  extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
 }
 
 }  // namespace
@@ -81,6 +62,28 @@ void direct_sum(const GravityOptions& options, std::span<const double> positions
   }
 }
 
+namespace {
+
+/// The GPU tree's input: the particles, their bounding box and the options.
+detail::TreeFieldInput tree_input(const GravityOptions& options, std::span<const double> positions,
+                                  std::span<const double> masses) {
+  detail::TreeFieldInput input;
+  input.positions = positions.data();
+  input.masses = masses.data();
+  input.n = masses.size();
+  if (input.n > 0) bounding_box(positions, input.lo, input.extent);
+  input.leaf_size = options.leaf_size;
+  input.group_size = options.group_size;
+  input.theta = options.theta;
+  input.quadrupole = options.order == 2;
+  const double eps = softening_length(options);
+  input.eps2 = eps * eps;
+  input.G = options.G;
+  return input;
+}
+
+}  // namespace
+
 FieldTimings tree_field(const GravityOptions& options, std::span<const double> positions,
                         std::span<const double> masses, std::span<double> accelerations, std::span<double> potential) {
   GravityOptions o = options;
@@ -91,45 +94,33 @@ FieldTimings tree_field(const GravityOptions& options, std::span<const double> p
         "CUDA backend: the GPU tree computes in double precision only (precision single is a "
         "CPU option)");
   require_device();
-  FieldTimings timings;
-  Tree tree(options.leaf_size, options.group_size);
-  timings.build_seconds = tree.build(positions, masses);
-  const std::size_t n = masses.size();
-  if (n == 0) return timings;
-  const std::vector<detail::WalkNode> nodes = walk_nodes(tree, options.theta);
-  const std::vector<detail::WalkGroup> groups = walk_groups(tree);
-  const Tree::SortedParticles p = tree.sorted_particles();
-  const double eps = softening_length(options);
-  detail::TreeWalkInput input;
-  input.num_particles = n;
-  input.x = p.x.data(), input.y = p.y.data(), input.z = p.z.data(), input.m = p.m.data();
-  input.num_nodes = nodes.size(), input.nodes = nodes.data();
-  input.num_groups = groups.size(), input.groups = groups.data();
-  input.quadrupole = options.order == 2;
-  input.eps2 = eps * eps;
-  input.G = options.G;
-  // Not value-initialised: every entry is written by the GPU (10^7 particles: 0.3 s of zeroing).
-  const std::unique_ptr<double[]> acc_sorted(new double[3 * n]);
-  const std::unique_ptr<double[]> pot_sorted(potential.empty() ? nullptr : new double[n]);
-  detail::TreeWalkTimings walk;
+  if (masses.size() > std::numeric_limits<std::uint32_t>::max() / 2)
+    throw GravityError("Tree: too many particles (limit 2^31)");
+  detail::TreeFieldTimings walk;
   try {
-    detail::tree_walk(input, acc_sorted.get(), pot_sorted.get(), &walk);
+    detail::tree_field(tree_input(options, positions, masses), accelerations.data(),
+                       potential.empty() ? nullptr : potential.data(), &walk);
   } catch (const std::runtime_error& e) {
     throw GravityError(e.what());
   }
-  // Back from Morton order to the caller's.
-  const auto& order = tree.order();
-  const auto sn = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static) if (sn >= kParallelMin)
-  for (std::ptrdiff_t sk = 0; sk < sn; ++sk) {
-    const auto k = static_cast<std::size_t>(sk);
-    const std::size_t i = order[k];
-    for (std::size_t c = 0; c < 3; ++c) accelerations[3 * i + c] = acc_sorted[3 * k + c];
-    if (!potential.empty()) potential[i] = pot_sorted[k];
-  }
-  timings.walk_seconds = walk.kernel_seconds;
-  timings.transfer_seconds = walk.upload_seconds + walk.download_seconds;
+  FieldTimings timings;
+  timings.build_seconds = walk.build_seconds;
+  timings.walk_seconds = walk.walk_seconds;
+  timings.transfer_seconds = walk.transfer_seconds;
   return timings;
+}
+
+detail::BuiltTree built_tree(const GravityOptions& options, std::span<const double> positions,
+                             std::span<const double> masses) {
+  GravityOptions o = options;
+  o.method = Method::tree;
+  validate_particles(o, positions, masses);
+  require_device();
+  try {
+    return detail::build_tree_for_test(tree_input(options, positions, masses));
+  } catch (const std::runtime_error& e) {
+    throw GravityError(e.what());
+  }
 }
 
 }  // namespace rubble::gravity::cuda

@@ -18,4 +18,8 @@ FieldTimings tree_field(const GravityOptions&, std::span<const double>, std::spa
   throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }
 
+detail::BuiltTree built_tree(const GravityOptions&, std::span<const double>, std::span<const double>) {
+  throw BackendUnavailable("CUDA backend: " + unavailable_reason());
+}
+
 }  // namespace rubble::gravity::cuda

@@ -25,8 +25,8 @@ enum class Method {
 enum class Backend {
   cpu,  ///< this library's OpenMP code (always available)
   cuda  ///< an NVIDIA GPU through the CUDA backend (gravity/cuda/): only when the library was built
-        ///< with it and a GPU is present; the direct sum, and the tree (built on the host, walked
-        ///< on the GPU, double precision only)
+        ///< with it and a GPU is present; the direct sum, and the tree (built and walked on the
+        ///< GPU, double precision only)
 };
 
 /// Arithmetic of the tree's interaction kernels.
@@ -74,12 +74,12 @@ struct GravityOptions {
 
 /// Wall-clock seconds spent in the phases of an evaluation (direct sum: walk only).
 struct FieldTimings {
-  /// Tree construction: Morton keys, sort, nodes, moments (on the host, for both backends).
+  /// Tree construction: Morton keys, sort, nodes, moments (and groups).
   double build_seconds = 0;
   /// Field evaluation (tree walk + interaction kernels, or the direct sum).
   double walk_seconds = 0;
-  /// Backend::cuda tree: device memory allocation and the copies to and from the GPU (not in
-  /// walk_seconds). 0 on the CPU.
+  /// Backend::cuda tree: the copies of the particles to the GPU and of the field back (not in the
+  /// other two). 0 on the CPU.
   double transfer_seconds = 0;
 };
 

@@ -88,8 +88,8 @@ class Tree {
   /// Counters of the last evaluate().
   const Stats& stats() const { return stats_; }
   /// Target groups of the last build() (or refit()), in walk order. With nodes(), second_moments()
-  /// and sorted_particles() they are everything a walk needs: the GPU walk (gravity/cuda/) reads
-  /// the tree through them.
+  /// and sorted_particles() they are everything a walk needs (tests/gravity/test_cuda.cpp compares
+  /// the tree built on the GPU with them).
   const std::vector<Group>& groups() const { return groups_; }
   /// Second moments M_ab = sum_k m_k (x_k - c)_a (x_k - c)_b of each node about its centre of mass,
   /// as Mxx Mxy Mxz Myy Myz Mzz [kg m^2], indexed like nodes().
@@ -99,8 +99,8 @@ class Tree {
 
   /// Squared opening radius of a node for opening angle theta: max(l / theta + delta, b_max)^2
   /// (gravity/README.md, "Opening criterion"). A node is accepted as a multipole for a group when
-  /// the squared distance from its centre of mass to the group's box exceeds this value. One
-  /// function for the CPU and the GPU walks, so that both accept the same nodes.
+  /// the squared distance from its centre of mass to the group's box exceeds this value
+  /// (gravity/cuda/tree_build.cu evaluates the same expression for the GPU walk).
   static double opening_radius2(const Node& node, double inv_theta) {
     const double r_open = std::max(node.bmax, node.size * inv_theta + node.delta);
     return r_open * r_open;

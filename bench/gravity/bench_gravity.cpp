@@ -10,9 +10,9 @@
 // per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
 // (N <= 100000) or over --subset random targets (larger N).
 //
-// --backend cuda: the tree built on the host (--threads sets its OpenMP threads), walked on the GPU;
-// its seconds include the build and the transfers ("copies s": allocation and copies to and from
-// the GPU; "walk s" the GPU walk alone). With
+// --backend cuda: the tree built and walked on the GPU (--threads sets the host's OpenMP threads,
+// which only check the input); its seconds include the copies ("copies s": the particles to the GPU
+// and the field back; "build s" and "walk s" the GPU's build and walk). With
 // --direct-rate, the GPU direct sum's pair rate (the first call, which creates the CUDA context, is
 // not timed: every figure is the best of --reps after one warm-up).
 

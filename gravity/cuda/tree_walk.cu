@@ -1,18 +1,15 @@
-// GPU tree walk: the CPU tree's group walk (gravity/tree.cpp) on a GPU, one thread block per group
-// of targets. The block walks the tree together, a chunk of up to kThreads nodes at a time: each
-// thread applies the opening criterion to one node, and block-wide prefix sums place the accepted
-// nodes (multipoles), the opened leaves (particle ranges) and the children of the opened nodes
-// (onto the block's stack) without atomics. When the lists in shared memory are full they are
-// evaluated, each thread summing them onto its own targets, and emptied. This is the shared
-// interaction list of Barnes (1990) as GPU tree codes use it (Bédorf, Gaburov & Portegies Zwart
-// 2012, "A sparse octree gravitational N-body code that runs entirely on the GPU", J. Comput.
-// Phys. 231, 2825: a warp-wide walk of a group with the lists built by prefix sums).
+// GPU tree walk: the CPU tree's group walk (gravity/tree.cpp) on a GPU, over the tree that
+// tree_build.cu built there, one thread block per group of targets. The block walks the tree together, a chunk of up to
+// kThreads nodes at a time: each thread applies the opening criterion to one node, and block-wide prefix sums place the
+// accepted nodes (multipoles), the opened leaves (particle ranges) and the children of the opened nodes (onto the
+// block's stack) without atomics. When the lists in shared memory are full they are evaluated, each thread summing them
+// onto its own targets, and emptied. This is the shared interaction list of Barnes (1990) as GPU tree codes use it
+// (Bédorf, Gaburov & Portegies Zwart 2012, "A sparse octree gravitational N-body code that runs entirely on the GPU",
+// J. Comput. Phys. 231, 2825: a warp-wide walk of a group with the lists built by prefix sums).
 //
 // Determinism: a group's walk, its lists and each target's sum depend only on the tree, not on
 // which block runs the group or how many blocks there are, so results are the same run to run and
 // on any GPU (with the same CUDA version).
-
-#include <cuda_runtime.h>
 
 #include <algorithm>
 #include <chrono>
@@ -21,7 +18,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "gravity/cuda/tree_walk.cuh"
+#include "gravity/cuda/device_tree.cuh"
 
 namespace rubble::gravity::cuda::detail {
 namespace {
@@ -33,31 +30,21 @@ constexpr int kRangeCapacity = 512;    // particle ranges (opened leaves) held b
 constexpr int kStackCapacity = 16384;  // nodes still to test, per block (global memory)
 constexpr unsigned kFullMask = 0xffffffffu;
 
-/// One particle for the kernels: position and mass in one 32-byte record.
-struct alignas(32) Particle {
-  double x, y, z, m;
-};
-
 /// What the walk kernel reads and writes (device pointers).
-struct DeviceTree {
+struct WalkArrays {
   const Particle* particles;
+  const std::uint32_t* order;  // the caller's index of each particle
   const WalkNode* nodes;
-  const WalkGroup* groups;
+  const BuiltGroup* groups;
   int num_groups;
   bool quadrupole;
   double eps2, G;
   double* sums;   // 4 per particle: running a/(-G) and phi/(-G) between two evaluations of the lists
-  double* acc;    // 3 per particle, the result
-  double* pot;    // 1 per particle or nullptr
+  double* acc;    // 3 per particle, the result, in the caller's order
+  double* pot;    // 1 per particle or nullptr, the caller's order
   int* stacks;    // kStackCapacity per block
   int* overflow;  // set to 1 when a stack would overflow
 };
-
-__global__ void pack_particles(const double* x, const double* y, const double* z, const double* m, int n,
-                               Particle* out) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < n) out[i] = Particle{x[i], y[i], z[i], m[i]};
-}
 
 /// Exclusive prefix sums over the block of three counts per thread, and their totals.
 /// warp_totals: shared scratch of kWarps x 3.
@@ -88,7 +75,7 @@ __device__ void block_exclusive_scan3(const int value[3], int offset[3], int tot
 }
 
 /// Squared distance from a point to the group's box (0 inside), as the CPU walk computes it.
-__device__ double dist2_point_box(double px, double py, double pz, const WalkGroup& g) {
+__device__ double dist2_point_box(double px, double py, double pz, const BuiltGroup& g) {
   const double dx = fmax(fmax(g.lo[0] - px, 0.0), px - g.hi[0]);
   const double dy = fmax(fmax(g.lo[1] - py, 0.0), py - g.hi[1]);
   const double dz = fmax(fmax(g.lo[2] - pz, 0.0), pz - g.hi[2]);
@@ -98,7 +85,7 @@ __device__ double dist2_point_box(double px, double py, double pz, const WalkGro
 /// Adds the field of the lists (cells and particle ranges) on each target of the group, in the
 /// order of the lists. first: the targets' running sums start at zero; last: the result is
 /// written (times -G, the softened self term removed) instead of the running sums.
-__device__ void evaluate_lists(const DeviceTree& t, const WalkGroup& g, const int* cells, int num_cells,
+__device__ void evaluate_lists(const WalkArrays& t, const BuiltGroup& g, const int* cells, int num_cells,
                                const uint2* ranges, int num_ranges, bool first, bool last) {
   for (unsigned k = threadIdx.x; k < g.count; k += kThreads) {
     const unsigned i = g.begin + k;
@@ -160,14 +147,15 @@ __device__ void evaluate_lists(const DeviceTree& t, const WalkGroup& g, const in
     }
     // The target's own leaf is always opened, so with softening its self term m / eps is in phi.
     if (t.eps2 > 0.0) phi -= me.m * rsqrt(t.eps2);
-    t.acc[3 * i] = -t.G * ax;
-    t.acc[3 * i + 1] = -t.G * ay;
-    t.acc[3 * i + 2] = -t.G * az;
-    if (t.pot) t.pot[i] = -t.G * phi;
+    const std::uint32_t o = t.order[i];
+    t.acc[3 * o] = -t.G * ax;
+    t.acc[3 * o + 1] = -t.G * ay;
+    t.acc[3 * o + 2] = -t.G * az;
+    if (t.pot) t.pot[o] = -t.G * phi;
   }
 }
 
-__global__ void __launch_bounds__(kThreads) walk_groups(DeviceTree t) {
+__global__ void __launch_bounds__(kThreads) walk_groups(WalkArrays t) {
   __shared__ int cells[kCellCapacity];
   __shared__ uint2 ranges[kRangeCapacity];
   __shared__ int warp_totals[kWarps][3];
@@ -175,7 +163,7 @@ __global__ void __launch_bounds__(kThreads) walk_groups(DeviceTree t) {
   int* stack = t.stacks + static_cast<std::size_t>(blockIdx.x) * kStackCapacity;
   const int tid = static_cast<int>(threadIdx.x);
   for (int gi = static_cast<int>(blockIdx.x); gi < t.num_groups; gi += static_cast<int>(gridDim.x)) {
-    const WalkGroup g = t.groups[gi];
+    const BuiltGroup g = t.groups[gi];
     if (tid == 0) {
       stack[0] = 0;  // the root
       stack_size = 1;
@@ -247,57 +235,31 @@ __global__ void __launch_bounds__(kThreads) walk_groups(DeviceTree t) {
   }
 }
 
-void check(cudaError_t e, const char* what) {
-  if (e != cudaSuccess) throw std::runtime_error(std::string("CUDA tree walk: ") + what + ": " + cudaGetErrorString(e));
-}
-
-/// Device memory released on scope exit.
-template <class T>
-struct DeviceBuffer {
-  T* ptr = nullptr;
-  explicit DeviceBuffer(std::size_t n) {
-    if (n > 0) check(cudaMalloc(&ptr, n * sizeof(T)), "cudaMalloc");
-  }
-  ~DeviceBuffer() {
-    if (ptr) cudaFree(ptr);
-  }
-  DeviceBuffer(const DeviceBuffer&) = delete;
-  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
-};
-
 template <class T>
 void upload(DeviceBuffer<T>& to, const T* from, std::size_t n) {
-  if (n > 0) check(cudaMemcpy(to.ptr, from, n * sizeof(T), cudaMemcpyHostToDevice), "copy to the GPU");
+  to.allocate(n);
+  if (n > 0) check(cudaMemcpy(to.get(), from, n * sizeof(T), cudaMemcpyHostToDevice), "copy to the GPU");
+}
+
+template <class T>
+void download(T* to, const DeviceBuffer<T>& from) {
+  if (from.size() > 0)
+    check(cudaMemcpy(to, from.get(), from.size() * sizeof(T), cudaMemcpyDeviceToHost), "copy from the GPU");
 }
 
 double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
-}  // namespace
+void check_size(const TreeFieldInput& in) {
+  if (in.n > static_cast<std::size_t>(INT_MAX / 4))
+    throw std::runtime_error("CUDA tree: too many particles for 32-bit indices");
+}
 
-void tree_walk(const TreeWalkInput& in, double* acc, double* pot, TreeWalkTimings* timings) {
-  using Clock = std::chrono::steady_clock;
-  const std::size_t n = in.num_particles;
-  if (n == 0) return;
-  if (n > static_cast<std::size_t>(INT_MAX / 4) || in.num_groups > static_cast<std::size_t>(INT_MAX))
-    throw std::runtime_error("CUDA tree walk: too many particles for 32-bit indices");
-  const auto t0 = Clock::now();
-  const int ni = static_cast<int>(n);
-  DeviceBuffer<Particle> particles(n);
-  {
-    DeviceBuffer<double> x(n), y(n), z(n), m(n);
-    upload(x, in.x, n), upload(y, in.y, n), upload(z, in.z, n), upload(m, in.m, n);
-    pack_particles<<<(ni + 255) / 256, 256>>>(x.ptr, y.ptr, z.ptr, m.ptr, ni, particles.ptr);
-    check(cudaGetLastError(), "pack particles");
-    check(cudaDeviceSynchronize(), "pack particles");
-  }
-  DeviceBuffer<WalkNode> nodes(in.num_nodes);
-  upload(nodes, in.nodes, in.num_nodes);
-  DeviceBuffer<WalkGroup> groups(in.num_groups);
-  upload(groups, in.groups, in.num_groups);
-  DeviceBuffer<double> sums(4 * n), dacc(3 * n), dpot(pot ? n : 0);
-
+/// Walks tree for every group; results into acc (3N) and pot (N or nullptr), caller's order.
+void walk(const TreeFieldInput& in, const DeviceTree& tree, double* acc, double* pot) {
+  const std::size_t n = in.n, num_groups = tree.groups.size();
+  DeviceBuffer<double> sums(4 * n);
   // As many blocks as can be resident at once, each walking groups blockIdx.x + k * gridDim.x:
   // the stacks (64 KiB a block) exist for resident blocks only.
   int device = 0, sms = 0, per_sm = 0;
@@ -305,28 +267,70 @@ void tree_walk(const TreeWalkInput& in, double* acc, double* pot, TreeWalkTiming
   check(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device), "multiprocessor count");
   check(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, walk_groups, kThreads, 0), "occupancy");
   const std::size_t resident = static_cast<std::size_t>(std::max(1, sms * std::max(1, per_sm)));
-  const int blocks = static_cast<int>(std::min(in.num_groups, resident));
+  const int blocks = static_cast<int>(std::min(num_groups, resident));
   DeviceBuffer<int> stacks(static_cast<std::size_t>(blocks) * kStackCapacity), overflow(1);
-  check(cudaMemset(overflow.ptr, 0, sizeof(int)), "cudaMemset");
-  const auto t1 = Clock::now();
-
-  const DeviceTree t{particles.ptr, nodes.ptr, groups.ptr, static_cast<int>(in.num_groups),
-                     in.quadrupole, in.eps2,   in.G,       sums.ptr,
-                     dacc.ptr,      dpot.ptr,  stacks.ptr, overflow.ptr};
+  check(cudaMemset(overflow.get(), 0, sizeof(int)), "cudaMemset");
+  const WalkArrays t{tree.particles.get(),
+                     tree.order.get(),
+                     tree.nodes.get(),
+                     tree.groups.get(),
+                     static_cast<int>(num_groups),
+                     in.quadrupole,
+                     in.eps2,
+                     in.G,
+                     sums.get(),
+                     acc,
+                     pot,
+                     stacks.get(),
+                     overflow.get()};
   walk_groups<<<blocks, kThreads>>>(t);
   check(cudaGetLastError(), "walk launch");
   check(cudaDeviceSynchronize(), "walk");
   int overflowed = 0;
-  check(cudaMemcpy(&overflowed, overflow.ptr, sizeof(int), cudaMemcpyDeviceToHost), "copy from the GPU");
+  check(cudaMemcpy(&overflowed, overflow.get(), sizeof(int), cudaMemcpyDeviceToHost), "copy from the GPU");
   if (overflowed)
-    throw std::runtime_error("CUDA tree walk: a group's node stack exceeded " + std::to_string(kStackCapacity) +
+    throw std::runtime_error("CUDA tree: a group's node stack exceeded " + std::to_string(kStackCapacity) +
                              " entries (tree too deep or too wide for the GPU walk)");
-  const auto t2 = Clock::now();
+}
 
-  check(cudaMemcpy(acc, dacc.ptr, 3 * n * sizeof(double), cudaMemcpyDeviceToHost), "copy from the GPU");
-  if (pot) check(cudaMemcpy(pot, dpot.ptr, n * sizeof(double), cudaMemcpyDeviceToHost), "copy from the GPU");
+}  // namespace
+
+void tree_field(const TreeFieldInput& in, double* acc, double* pot, TreeFieldTimings* timings) {
+  using Clock = std::chrono::steady_clock;
+  const std::size_t n = in.n;
+  if (n == 0) return;
+  check_size(in);
+  const auto t0 = Clock::now();
+  DeviceBuffer<double> positions, masses;
+  upload(positions, in.positions, 3 * n);
+  upload(masses, in.masses, n);
+  DeviceBuffer<double> dacc(3 * n), dpot(pot ? n : 0);
+  const auto t1 = Clock::now();
+  const DeviceTree tree = build_tree(in, positions.get(), masses.get());
+  const auto t2 = Clock::now();
+  walk(in, tree, dacc.get(), dpot.get());
   const auto t3 = Clock::now();
-  if (timings) *timings = {seconds(t0, t1), seconds(t1, t2), seconds(t2, t3)};
+  download(acc, dacc);
+  if (pot) download(pot, dpot);
+  const auto t4 = Clock::now();
+  if (timings) *timings = {seconds(t1, t2), seconds(t2, t3), seconds(t0, t1) + seconds(t3, t4)};
+}
+
+BuiltTree build_tree_for_test(const TreeFieldInput& in) {
+  BuiltTree out;
+  if (in.n == 0) return out;
+  check_size(in);
+  DeviceBuffer<double> positions, masses;
+  upload(positions, in.positions, 3 * in.n);
+  upload(masses, in.masses, in.n);
+  const DeviceTree tree = build_tree(in, positions.get(), masses.get());
+  out.nodes.resize(tree.built_nodes.size());
+  out.order.resize(tree.order.size());
+  out.groups.resize(tree.groups.size());
+  download(out.nodes.data(), tree.built_nodes);
+  download(out.order.data(), tree.order);
+  download(out.groups.data(), tree.groups);
+  return out;
 }
 
 }  // namespace rubble::gravity::cuda::detail

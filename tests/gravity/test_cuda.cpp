@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <random>
 #include <string>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "gravity/direct_sum.hpp"
+#include "gravity/tree.hpp"
 #include "test_support.hpp"
 
 namespace g = rubble::gravity;
@@ -277,4 +279,54 @@ TEST(Cuda, TreeHandlesTinyInputsAndALeafLargerThanAGroup) {
   std::vector<double> a_exact(3 * p.size());
   g::direct_sum(exact, p.pos, p.mass, a_exact, {});
   EXPECT_LT(g::testing::relative_errors(gpu.acc, a_exact).median, 1e-3);
+}
+
+// The tree built on the GPU is gravity::Tree's: the same Morton order, the same nodes (found by
+// their particle range: the GPU numbers them level by level, the host depth first) with the same
+// moments to the last bit (tree_build.cu runs the host's formulas without fused multiply-adds),
+// and the same groups. Ties in the keys (coincident particles) and a Plummer halo (deep, uneven
+// tree) included.
+TEST(Cuda, TreeBuiltOnTheGpuIsTheHostTree) {
+  g::GravityOptions o = tree_options(2, 0.0);
+  o.backend = g::Backend::cuda;
+  const std::string reason = g::backend_unavailable_reason(o);
+  if (!reason.empty()) GTEST_SKIP() << "backend cuda cannot run the tree here: " << reason;
+  auto p = g::testing::plummer_sphere(50000, 1.0, 1.0, 91);
+  for (std::size_t i = 0; i + 1 < 2000; i += 2)
+    for (std::size_t c = 0; c < 3; ++c) p.pos[3 * (i + 1) + c] = p.pos[3 * i + c];
+  for (int group_size : {64, 7}) {
+    o.group_size = group_size;
+    g::Tree host(o.leaf_size, o.group_size);
+    host.build(p.pos, p.mass);
+    const auto gpu = g::cuda::built_tree(o, p.pos, p.mass);
+    EXPECT_EQ(gpu.order, host.order());
+    ASSERT_EQ(gpu.nodes.size(), host.nodes().size());
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::size_t> by_range;
+    for (std::size_t i = 0; i < host.nodes().size(); ++i) by_range[{host.nodes()[i].begin, host.nodes()[i].count}] = i;
+    std::size_t mismatched = 0;
+    for (const auto& b : gpu.nodes) {
+      const auto it = by_range.find({b.begin, b.count});
+      ASSERT_NE(it, by_range.end()) << "a GPU node with no host node: range " << b.begin << " + " << b.count;
+      const g::Tree::Node& h = host.nodes()[it->second];
+      const auto& q = host.second_moments()[it->second];
+      const bool same = b.num_children == h.num_children && b.cx == h.cx && b.cy == h.cy && b.cz == h.cz &&
+                        b.mass == h.mass && b.bmax == h.bmax && b.size == h.size && b.delta == h.delta &&
+                        std::equal(b.lo, b.lo + 3, h.lo.begin()) && std::equal(b.hi, b.hi + 3, h.hi.begin()) &&
+                        std::equal(b.q, b.q + 6, q.begin());
+      if (!same) ++mismatched;
+    }
+    EXPECT_EQ(mismatched, 0u) << "nodes differing from the host's, group_size " << group_size;
+    ASSERT_EQ(gpu.groups.size(), host.groups().size());
+    auto gpu_groups = gpu.groups;
+    std::sort(gpu_groups.begin(), gpu_groups.end(), [](const auto& a, const auto& b) { return a.begin < b.begin; });
+    auto host_groups = host.groups();
+    std::sort(host_groups.begin(), host_groups.end(), [](const auto& a, const auto& b) { return a.begin < b.begin; });
+    for (std::size_t k = 0; k < host_groups.size(); ++k) {
+      EXPECT_EQ(gpu_groups[k].begin, host_groups[k].begin);
+      EXPECT_EQ(gpu_groups[k].count, host_groups[k].count);
+      EXPECT_TRUE(std::equal(gpu_groups[k].lo, gpu_groups[k].lo + 3, host_groups[k].lo.begin()) &&
+                  std::equal(gpu_groups[k].hi, gpu_groups[k].hi + 3, host_groups[k].hi.begin()))
+          << "group " << k;
+    }
+  }
 }
