@@ -20,18 +20,20 @@ void require_device() {
   if (detail::device_count(&reason) == 0) throw BackendUnavailable("CUDA backend: " + reason);
 }
 
-/// The particles' bounding box as Tree::build computes it (the same loop: min and max are exact, so
-/// the GPU's Morton keys are the host's).
+/// The particles' bounding box as Tree::build computes it (min and max are exact in any order, so
+/// the box, and the GPU's Morton keys, are the host's whatever the threads).
 void bounding_box(std::span<const double> positions, double lo[3], double& extent) {
-  double hi[3] = {positions[0], positions[1], positions[2]};
-  for (int d = 0; d < 3; ++d) lo[d] = positions[static_cast<std::size_t>(d)];
-  const std::size_t n = positions.size() / 3;
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t d = 0; d < 3; ++d) {
-      lo[d] = std::min(lo[d], positions[3 * i + d]);
-      hi[d] = std::max(hi[d], positions[3 * i + d]);
-    }
-  extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  double lx = positions[0], ly = positions[1], lz = positions[2], hx = lx, hy = ly, hz = lz;
+  const auto n = static_cast<std::ptrdiff_t>(positions.size() / 3);
+#pragma omp parallel for reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (n >= (std::ptrdiff_t{1} << 18))
+  for (std::ptrdiff_t si = 0; si < n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    lx = std::min(lx, positions[3 * i]), hx = std::max(hx, positions[3 * i]);
+    ly = std::min(ly, positions[3 * i + 1]), hy = std::max(hy, positions[3 * i + 1]);
+    lz = std::min(lz, positions[3 * i + 2]), hz = std::max(hz, positions[3 * i + 2]);
+  }
+  lo[0] = lx, lo[1] = ly, lo[2] = lz;
+  extent = std::max({hx - lx, hy - ly, hz - lz});
 }
 
 }  // namespace

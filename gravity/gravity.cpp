@@ -1,5 +1,6 @@
 #include "gravity/gravity.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -57,6 +58,45 @@ void require_backend(const GravityOptions& options) {
   if (!reason.empty()) throw BackendUnavailable("backend " + to_string(options.backend) + ": " + reason);
 }
 
+namespace {
+
+/// Adds x * 0 over x[0, n) to zero_sum: it stays 0 exactly when every value is finite (x * 0 is 0
+/// for a finite x and NaN for an infinity or a NaN, in any order of summation). Eight independent
+/// accumulators, so that the loop runs at memory speed, not at the latency of one chain of
+/// additions. least (when given) becomes the least value.
+void probe_values(const double* x, std::size_t n, double& zero_sum, double* least) {
+  double sum[8] = {}, low[8] = {};
+  if (least) std::fill(low, low + 8, *least);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    for (std::size_t k = 0; k < 8; ++k) sum[k] += x[i + k] * 0.0;
+  for (; i < n; ++i) sum[0] += x[i] * 0.0;
+  for (std::size_t k = 0; k < 8; ++k) zero_sum += sum[k];
+  if (!least) return;
+  for (i = 0; i + 8 <= n; i += 8)
+    for (std::size_t k = 0; k < 8; ++k) low[k] = std::min(low[k], x[i + k]);
+  for (; i < n; ++i) low[0] = std::min(low[0], x[i]);
+  *least = *std::min_element(low, low + 8);
+}
+
+/// The common case of validate_particles in one pass at memory speed, on all threads for large N
+/// (the element-by-element checks were a third of a GPU tree evaluation at 10^7 particles). The
+/// answer does not depend on the threads: a sum of zeros is zero and NaN stays NaN in any order.
+bool all_finite_and_masses_non_negative(std::span<const double> positions, std::span<const double> masses) {
+  constexpr std::size_t kChunk = std::size_t{1} << 16;  // masses per task
+  const std::size_t n = masses.size(), chunks = (n + kChunk - 1) / kChunk;
+  double zero_sum = 0.0, least_mass = 0.0;
+#pragma omp parallel for reduction(+ : zero_sum) reduction(min : least_mass) if (chunks > 4)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    const std::size_t b = static_cast<std::size_t>(c) * kChunk, e = std::min(n, b + kChunk);
+    probe_values(positions.data() + 3 * b, 3 * (e - b), zero_sum, nullptr);
+    probe_values(masses.data() + b, e - b, zero_sum, &least_mass);
+  }
+  return zero_sum == 0.0 && least_mass >= 0.0;
+}
+
+}  // namespace
+
 void validate_particles(const GravityOptions& options, std::span<const double> positions,
                         std::span<const double> masses) {
   if (!std::isfinite(options.G)) throw GravityError("G must be finite");
@@ -66,7 +106,8 @@ void validate_particles(const GravityOptions& options, std::span<const double> p
   if (positions.size() != 3 * masses.size())
     throw GravityError("positions must hold 3 values per mass (got " + std::to_string(positions.size()) +
                        " values for " + std::to_string(masses.size()) + " masses)");
-  for (std::size_t i = 0; i < masses.size(); ++i) {
+  if (all_finite_and_masses_non_negative(positions, masses)) return;
+  for (std::size_t i = 0; i < masses.size(); ++i) {  // which one, for the message
     if (!std::isfinite(masses[i]) || masses[i] < 0)
       throw GravityError("mass " + std::to_string(i) + " is not a finite number >= 0");
     for (int d = 0; d < 3; ++d)

@@ -85,9 +85,9 @@ struct DeviceTree {
 
 /// Builds the tree of input's particles, already on the GPU (positions 3N, masses N), with
 /// input's leaf_size, group_size, theta and bounding box. The same tree as gravity::Tree::build:
-/// the same Morton order, the same nodes (numbered level by level here, depth first there) with
-/// the same moments to the last bit (tree_build.cu is compiled without fused multiply-adds, as the
-/// host code is), the same groups.
+/// the same Morton order, the same node array (same numbering) with the same moments to the last
+/// bit (tree_build.cu is compiled without fused multiply-adds, as the host code is), the same
+/// groups (in another order).
 DeviceTree build_tree(const TreeFieldInput& input, const double* positions, const double* masses);
 
 }  // namespace rubble::gravity::cuda::detail

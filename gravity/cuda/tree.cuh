@@ -52,7 +52,7 @@ struct BuiltGroup {
   std::uint32_t begin, count;
 };
 
-/// The tree that tree_field() builds, copied back to the host: nodes level by level (root first),
+/// The tree that tree_field() builds, copied back to the host: nodes (numbered as Tree::nodes()),
 /// the Morton order (order[k] = input index of the k-th particle) and the groups.
 struct BuiltTree {
   std::vector<BuiltNode> nodes;

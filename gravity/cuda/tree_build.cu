@@ -12,6 +12,8 @@
 //      the last bit (test Cuda.TreeBuiltOnTheGpuIsTheHostTree).
 //   5. Target groups: each node with more than group_size particles packs its children into
 //      groups as the host's collect_groups does; a prefix sum places them.
+//   6. The nodes renumbered as the host numbers them (depth first), from subtree sizes and
+//      preorder positions: the same node array as Tree::nodes().
 // The parallel construction level by level follows the idea of Karras (2012, "Maximizing
 // parallelism in the construction of BVHs, octrees, and k-d trees", High Performance Graphics):
 // every node of a level is split independently from the sorted keys alone.
@@ -257,10 +259,50 @@ __global__ void level_moments(const Particle* particles, Topology t, int first, 
   nodes[node] = nd;
 }
 
-/// The walk's record of each node, with the opening radius for 1 / theta (Tree::opening_radius2).
-__global__ void walk_nodes(const BuiltNode* nodes, Topology t, int num, double inv_theta, WalkNode* out) {
+/// Number of nodes in each node's subtree, for one level, the deeper levels done.
+__global__ void subtree_sizes(Topology t, int first, int num, int* size) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= num) return;
+  const int node = first + s;
+  int nodes = 1;
+  for (int c = 0; c < t.num_children[node]; ++c) nodes += size[t.first_child[node] + c];
+  size[node] = nodes;
+}
+
+/// Depth-first preorder positions of the children of one level's nodes (their own are set).
+__global__ void preorder_children(Topology t, int first, int num, const int* size, int* preorder) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= num) return;
+  const int node = first + s;
+  int next = preorder[node] + 1;
+  for (int c = 0; c < t.num_children[node]; ++c) {
+    preorder[t.first_child[node] + c] = next;
+    next += size[t.first_child[node] + c];
+  }
+}
+
+__global__ void children_in_preorder(Topology t, int total, const int* preorder, int* num_children) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= num) return;
+  if (i < total) num_children[preorder[i]] = t.num_children[i];
+}
+
+/// The host's node numbers (tree.cpp's build_nodes): it splits the nodes in depth-first preorder and
+/// appends each one's children as a block, so a node's first child is numbered 1 + the number of
+/// children of the nodes before it in preorder (children_before, an exclusive prefix sum).
+__global__ void host_numbers(Topology t, int total, const int* preorder, const int* children_before, int* number) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= total) return;
+  if (i == 0) number[0] = 0;
+  const int base = 1 + children_before[preorder[i]];
+  for (int c = 0; c < t.num_children[i]; ++c) number[t.first_child[i] + c] = base + c;
+}
+
+/// Each node at its host number: its full record, and the walk's with the opening radius for
+/// 1 / theta (Tree::opening_radius2).
+__global__ void renumber_nodes(const BuiltNode* nodes, Topology t, int total, const int* number, double inv_theta,
+                               BuiltNode* built_out, WalkNode* walk_out) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= total) return;
   const BuiltNode& nd = nodes[i];
   const double r_open = fmax(nd.bmax, nd.size * inv_theta + nd.delta);
   WalkNode w{};
@@ -269,8 +311,10 @@ __global__ void walk_nodes(const BuiltNode* nodes, Topology t, int num, double i
   w.r_open2 = r_open * r_open;
   for (int k = 0; k < 6; ++k) w.q[k] = nd.q[k];
   w.begin = nd.begin, w.count = nd.count;
-  w.first_child = t.first_child[i], w.num_children = t.num_children[i];
-  out[i] = w;
+  w.first_child = t.first_child[i] >= 0 ? number[t.first_child[i]] : -1;
+  w.num_children = t.num_children[i];
+  walk_out[number[i]] = w;
+  built_out[number[i]] = nd;
 }
 
 /// Adds node nd to group g (tree.cpp's collect_groups: the first node sets the range and the box).
@@ -403,28 +447,51 @@ DeviceTree build_tree(const TreeFieldInput& in, const double* positions, const d
     }
 
     // 4. Moments, deepest level first.
-    tree.built_nodes.allocate(static_cast<std::size_t>(total));
+    const auto nodes_total = static_cast<std::size_t>(total);
+    const int node_blocks = blocks_for(nodes_total);
+    DeviceBuffer<BuiltNode> level_order(nodes_total);
     for (auto it = levels.rbegin(); it != levels.rend(); ++it) {
       level_moments<<<blocks_for(static_cast<std::size_t>(it->second)), kBlock>>>(tree.particles.get(), t, it->first,
-                                                                                  it->second, tree.built_nodes.get());
+                                                                                  it->second, level_order.get());
       check(cudaGetLastError(), "moments");
     }
-    tree.nodes.allocate(static_cast<std::size_t>(total));
-    walk_nodes<<<blocks_for(static_cast<std::size_t>(total)), kBlock>>>(tree.built_nodes.get(), t, total,
-                                                                        1.0 / in.theta, tree.nodes.get());
-    check(cudaGetLastError(), "walk nodes");
 
-    // 5. Groups.
-    DeviceBuffer<int> group_count(static_cast<std::size_t>(total)), group_offset(static_cast<std::size_t>(total));
+    // 5. Groups (they name particle ranges, not nodes: the numbering does not matter).
+    DeviceBuffer<int> group_count(nodes_total), group_offset(nodes_total);
     const auto gmax = static_cast<std::uint32_t>(in.group_size);
-    count_groups<<<blocks_for(static_cast<std::size_t>(total)), kBlock>>>(tree.built_nodes.get(), t, total, gmax,
-                                                                          group_count.get());
+    count_groups<<<node_blocks, kBlock>>>(level_order.get(), t, total, gmax, group_count.get());
     check(cudaGetLastError(), "count groups");
     const int num_groups = exclusive_sum(group_count.get(), group_offset.get(), total, scratch);
     tree.groups.allocate(static_cast<std::size_t>(num_groups));
-    write_groups<<<blocks_for(static_cast<std::size_t>(total)), kBlock>>>(tree.built_nodes.get(), t, total, gmax,
-                                                                          group_offset.get(), tree.groups.get());
+    write_groups<<<node_blocks, kBlock>>>(level_order.get(), t, total, gmax, group_offset.get(), tree.groups.get());
     check(cudaGetLastError(), "write groups");
+
+    // 6. The host's numbering (depth first): subtrees bottom-up, preorder top-down, then each
+    //    node's children placed after the children of the nodes before it in preorder. The node
+    //    array is then Tree::nodes() itself (compared node by node in the tests), and a subtree's
+    //    nodes are close in memory.
+    DeviceBuffer<int> size(nodes_total), preorder(nodes_total), children(nodes_total), before(nodes_total),
+        number(nodes_total);
+    for (auto it = levels.rbegin(); it != levels.rend(); ++it) {
+      subtree_sizes<<<blocks_for(static_cast<std::size_t>(it->second)), kBlock>>>(t, it->first, it->second, size.get());
+      check(cudaGetLastError(), "subtree sizes");
+    }
+    check(cudaMemset(preorder.get(), 0, sizeof(int)), "cudaMemset");
+    for (const auto& [level_first, level_num] : levels) {
+      preorder_children<<<blocks_for(static_cast<std::size_t>(level_num)), kBlock>>>(t, level_first, level_num,
+                                                                                     size.get(), preorder.get());
+      check(cudaGetLastError(), "preorder");
+    }
+    children_in_preorder<<<node_blocks, kBlock>>>(t, total, preorder.get(), children.get());
+    check(cudaGetLastError(), "children in preorder");
+    exclusive_sum(children.get(), before.get(), total, scratch);
+    host_numbers<<<node_blocks, kBlock>>>(t, total, preorder.get(), before.get(), number.get());
+    check(cudaGetLastError(), "node numbers");
+    tree.built_nodes.allocate(nodes_total);
+    tree.nodes.allocate(nodes_total);
+    renumber_nodes<<<node_blocks, kBlock>>>(level_order.get(), t, total, number.get(), 1.0 / in.theta,
+                                            tree.built_nodes.get(), tree.nodes.get());
+    check(cudaGetLastError(), "renumber nodes");
     check(cudaDeviceSynchronize(), "tree build");
   }
   return tree;

@@ -151,6 +151,36 @@ TEST(DirectSum, RejectsInvalidInput) {
   EXPECT_NO_THROW(g::compute_field(direct_options(), pos, m, a, {}));
 }
 
+// The input check runs as one pass on all threads for large N (gravity.cpp,
+// all_finite_and_masses_non_negative) and only then looks for the culprit: one bad value among
+// 300 000 particles is still found and named, and -0.0 is still a valid mass.
+TEST(DirectSum, InputCheckFindsOneBadValueInALargeInput) {
+  const std::size_t n = 300000;
+  std::vector<double> pos(3 * n, 1.0), m(n, 1.0);
+  const g::GravityOptions o = direct_options();
+  EXPECT_NO_THROW(g::validate_particles(o, pos, m));
+  m[17] = -0.0;
+  EXPECT_NO_THROW(g::validate_particles(o, pos, m));
+  auto message = [&](const std::vector<double>& x, const std::vector<double>& mass) -> std::string {
+    try {
+      g::validate_particles(o, x, mass);
+    } catch (const g::GravityError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  for (double bad : {std::nan(""), HUGE_VAL, -HUGE_VAL}) {
+    auto x = pos;
+    x[3 * (n - 2) + 1] = bad;
+    EXPECT_EQ(message(x, m), "position " + std::to_string(n - 2) + " is not finite") << bad;
+  }
+  for (double bad : {-1e-300, std::nan(""), HUGE_VAL}) {
+    auto mass = m;
+    mass[n - 1] = bad;
+    EXPECT_EQ(message(pos, mass), "mass " + std::to_string(n - 1) + " is not a finite number >= 0") << bad;
+  }
+}
+
 // Two bodies on a circular orbit, integrated with velocity Verlet (kick-drift-kick) at 1000 steps
 // per orbit for 10 orbits in SI units with the default G. Kepler: T = 2 pi sqrt(a^3 / (G M)).
 TEST(DirectSum, TwoBodyCircularOrbit) {
