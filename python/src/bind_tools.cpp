@@ -131,10 +131,11 @@ py::dict solve_problem(const LocalProblem& problem, const LocalProblemOptions& o
 }
 
 /// rubble.gravity.field's core (python/rubble/gravity.py): the field of N point masses, the GIL
-/// released during the evaluation. Returns (acceleration, potential or None, build s, walk s).
+/// released during the evaluation. Returns (acceleration, potential or None, build s, walk s,
+/// transfer s).
 py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses, const std::string& method,
                         double theta, int order, double G, double softening, bool with_potential, int leaf_size,
-                        int group_size, const std::string& precision) {
+                        int group_size, const std::string& precision, const std::string& backend) {
   if (positions.ndim() != 2 || positions.shape(1) != 3)
     throw gravity::GravityError("positions: expected an (N, 3) array");
   if (masses.ndim() != 1 || masses.shape(0) != positions.shape(0)) {
@@ -159,6 +160,11 @@ py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses,
   } else if (precision != "double") {
     throw gravity::GravityError("precision: expected 'double' or 'single', got '" + precision + "'");
   }
+  if (backend == "cuda") {
+    options.backend = gravity::Backend::cuda;
+  } else if (backend != "cpu") {
+    throw gravity::GravityError("backend: expected 'cpu' or 'cuda', got '" + backend + "'");
+  }
   if (softening > 0.0) options.softening = {gravity::Softening::Kind::plummer, softening};
   if (softening < 0.0) throw gravity::GravityError(fmt::format("softening: expected >= 0, got {}", softening));
   const auto n = static_cast<std::size_t>(positions.shape(0));
@@ -168,13 +174,14 @@ py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses,
   const std::span<double> a(acceleration.mutable_data(), 3 * n);
   const std::span<double> phi(potential.mutable_data(), with_potential ? n : 0);
   gravity::validate(options, x, mass, a, phi);
+  gravity::require_backend(options);  // BackendUnavailable (a GravityError) with the reason
   gravity::FieldTimings timings;
   {
     py::gil_scoped_release release;
     timings = gravity::compute_field(options, x, mass, a, phi);
   }
   return py::make_tuple(acceleration, with_potential ? py::object(potential) : py::object(py::none()),
-                        timings.build_seconds, timings.walk_seconds);
+                        timings.build_seconds, timings.walk_seconds, timings.transfer_seconds);
 }
 
 }  // namespace
@@ -183,7 +190,7 @@ void bind_tools(py::module_& m) {
   // ---- gravity ----
   m.def("_gravity_field", gravity_field, py::arg("positions"), py::arg("masses"), py::arg("method"), py::arg("theta"),
         py::arg("order"), py::arg("G"), py::arg("softening"), py::arg("potential"), py::arg("leaf_size"),
-        py::arg("group_size"), py::arg("precision"));
+        py::arg("group_size"), py::arg("precision"), py::arg("backend"));
 
   // ---- run files ----
   py::class_<RunReader>(m, "RunReader", "A run file (run.h5) open for reading: model, scene text, series, snapshots")
