@@ -1,5 +1,5 @@
 // gravity/cuda.hpp on top of the raw CUDA entry points (built only with the CUDA backend).
-#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
@@ -7,6 +7,7 @@
 #include "gravity/cuda.hpp"
 #include "gravity/cuda/direct_sum.cuh"
 #include "gravity/cuda/tree.cuh"
+#include "gravity/tree.hpp"
 
 namespace rubble::gravity::cuda {
 namespace {
@@ -18,22 +19,6 @@ double softening_length(const GravityOptions& options) {
 void require_device() {
   std::string reason;
   if (detail::device_count(&reason) == 0) throw BackendUnavailable("CUDA backend: " + reason);
-}
-
-/// The particles' bounding box as Tree::build computes it (min and max are exact in any order, so
-/// the box, and the GPU's Morton keys, are the host's whatever the threads).
-void bounding_box(std::span<const double> positions, double lo[3], double& extent) {
-  double lx = positions[0], ly = positions[1], lz = positions[2], hx = lx, hy = ly, hz = lz;
-  const auto n = static_cast<std::ptrdiff_t>(positions.size() / 3);
-#pragma omp parallel for reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (n >= (std::ptrdiff_t{1} << 18))
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    lx = std::min(lx, positions[3 * i]), hx = std::max(hx, positions[3 * i]);
-    ly = std::min(ly, positions[3 * i + 1]), hy = std::max(hy, positions[3 * i + 1]);
-    lz = std::min(lz, positions[3 * i + 2]), hz = std::max(hz, positions[3 * i + 2]);
-  }
-  lo[0] = lx, lo[1] = ly, lo[2] = lz;
-  extent = std::max({hx - lx, hy - ly, hz - lz});
 }
 
 }  // namespace
@@ -73,7 +58,11 @@ detail::TreeFieldInput tree_input(const GravityOptions& options, std::span<const
   input.positions = positions.data();
   input.masses = masses.data();
   input.n = masses.size();
-  if (input.n > 0) bounding_box(positions, input.lo, input.extent);
+  if (input.n > 0) {
+    std::array<double, 3> lo{};
+    Tree::bounding_cube(positions, lo, input.extent);
+    for (std::size_t d = 0; d < 3; ++d) input.lo[d] = lo[d];
+  }
   input.leaf_size = options.leaf_size;
   input.group_size = options.group_size;
   input.theta = options.theta;

@@ -11,6 +11,7 @@
 #include <type_traits>
 
 #include "gravity/kernels.hpp"
+#include "gravity/morton.hpp"
 
 namespace rubble::gravity {
 namespace {
@@ -19,20 +20,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-/// Spreads the low 21 bits of v so that bit b moves to bit 3b (Morton interleaving by the usual
-/// shift-and-mask sequence).
-std::uint64_t spread_bits(std::uint64_t v) {
-  v &= 0x1fffffULL;
-  v = (v | (v << 32)) & 0x1f00000000ffffULL;
-  v = (v | (v << 16)) & 0x1f0000ff0000ffULL;
-  v = (v | (v << 8)) & 0x100f00f00f00f00fULL;
-  v = (v | (v << 4)) & 0x10c30c30c30c30c3ULL;
-  v = (v | (v << 2)) & 0x1249249249249249ULL;
-  return v;
-}
-
-constexpr int kBitsPerAxis = 21;  // 3 * 21 = 63-bit keys
-constexpr double kCells = static_cast<double>(1u << kBitsPerAxis);
 // b_max is rounded up by a few ulps so that a node containing a target can never pass the
 // (strict) acceptance test through rounding, even with theta >= 1.
 constexpr double kBmaxSafety = 1.0 + 1e-12;
@@ -108,28 +95,16 @@ inline double dist2_point_box(double px, double py, double pz, const std::array<
 /// the permutation that sorts them (order[k] = index of the k-th particle along the curve).
 std::vector<std::uint64_t> sorted_morton_keys(std::span<const double> positions, std::vector<std::uint32_t>& order) {
   const std::size_t n = order.size();
-  // Bounding cube of all particles, then 21-bit integer coordinates and Morton keys.
-  double lo[3] = {positions[0], positions[1], positions[2]};
-  double hi[3] = {lo[0], lo[1], lo[2]};
-  for (std::size_t i = 0; i < n; ++i)
-    for (int d = 0; d < 3; ++d) {
-      lo[d] = std::min(lo[d], positions[3 * i + d]);
-      hi[d] = std::max(hi[d], positions[3 * i + d]);
-    }
-  const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-  const double scale = extent > 0 ? kCells / extent : 0.0;
+  std::array<double, 3> lo{};
+  double extent = 0;
+  Tree::bounding_cube(positions, lo, extent);
+  const double scale = extent > 0 ? morton::kCells / extent : 0.0;
   std::vector<std::uint64_t> keys(n);
   const auto sn = static_cast<std::ptrdiff_t>(n);
 #pragma omp parallel for schedule(static) if (n >= kParallelKeysMin)
   for (std::ptrdiff_t s = 0; s < sn; ++s) {
     const auto i = static_cast<std::size_t>(s);
-    std::uint64_t key = 0;
-    for (int d = 0; d < 3; ++d) {
-      const double q = std::floor((positions[3 * i + d] - lo[d]) * scale);
-      const auto c = static_cast<std::uint64_t>(std::clamp(q, 0.0, kCells - 1.0));
-      key |= spread_bits(c) << (2 - d);
-    }
-    keys[i] = key;
+    keys[i] = morton::key(&positions[3 * i], lo.data(), scale);
     order[i] = static_cast<std::uint32_t>(i);
   }
   radix_sort(keys, order);
@@ -196,6 +171,23 @@ struct Tree::WalkNode {
   std::uint32_t begin, count;
   std::int32_t first_child, num_children;
 };
+
+void Tree::bounding_cube(std::span<const double> positions, std::array<double, 3>& lo, double& extent) {
+  double lx = positions[0], ly = positions[1], lz = positions[2], hx = lx, hy = ly, hz = lz;
+  const auto n = static_cast<std::ptrdiff_t>(positions.size() / 3);
+#pragma omp parallel for reduction(min           \
+                                   : lx, ly, lz) \
+    reduction(max                                \
+              : hx, hy, hz) if (n >= static_cast <std::ptrdiff_t>(kParallelKeysMin))
+  for (std::ptrdiff_t si = 0; si < n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    lx = std::min(lx, positions[3 * i]), hx = std::max(hx, positions[3 * i]);
+    ly = std::min(ly, positions[3 * i + 1]), hy = std::max(hy, positions[3 * i + 1]);
+    lz = std::min(lz, positions[3 * i + 2]), hz = std::max(hz, positions[3 * i + 2]);
+  }
+  lo = {lx, ly, lz};
+  extent = std::max({hx - lx, hy - ly, hz - lz});
+}
 
 Tree::Tree(int leaf_size, int group_size) : leaf_size_(leaf_size), group_size_(group_size) {
   if (leaf_size < 1) throw GravityError("Tree: leaf_size must be >= 1");

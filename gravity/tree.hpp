@@ -97,6 +97,11 @@ class Tree {
   /// Positions and masses in Morton order.
   SortedParticles sorted_particles() const { return {x_, y_, z_, m_}; }
 
+  /// Corner lo and longest side `extent` of the particles' bounding box (positions: 3N, N >= 1):
+  /// the cube whose grid gives the Morton keys (gravity/morton.hpp). On all threads from 2^18
+  /// particles; min and max are exact, so the result does not depend on the threads.
+  static void bounding_cube(std::span<const double> positions, std::array<double, 3>& lo, double& extent);
+
   /// Squared opening radius of a node for opening angle theta: max(l / theta + delta, b_max)^2
   /// (gravity/README.md, "Opening criterion"). A node is accepted as a multipole for a group when
   /// the squared distance from its centre of mass to the group's box exceeds this value

@@ -30,6 +30,7 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "gravity/direct_sum.hpp"
@@ -90,38 +91,22 @@ double percentile(std::vector<double> v, double p) {
   return v[k];
 }
 
-/// "double,single" -> the kernel precisions, in that order.
-std::vector<g::KernelPrecision> parse_precisions(const std::string& text) {
-  std::vector<g::KernelPrecision> out;
+/// "a,b" -> the values that `names` gives those words, in that order; exits with code 2 on a word
+/// not in names (option: the option's name, for the message).
+template <typename T>
+std::vector<T> parse_choices(const std::string& text, const char* option,
+                             const std::vector<std::pair<std::string, T>>& names) {
+  std::vector<T> out;
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    if (item == "double")
-      out.push_back(g::KernelPrecision::double_precision);
-    else if (item == "single")
-      out.push_back(g::KernelPrecision::single_precision);
-    else {
-      std::fprintf(stderr, "--precision: expected double or single, got '%s'\n", item.c_str());
+    const auto it = std::find_if(names.begin(), names.end(), [&](const auto& n) { return n.first == item; });
+    if (it == names.end()) {
+      std::fprintf(stderr, "%s: expected %s or %s, got '%s'\n", option, names.front().first.c_str(),
+                   names.back().first.c_str(), item.c_str());
       std::exit(2);
     }
-  }
-  return out;
-}
-
-/// "cpu,cuda" -> the backends, in that order.
-std::vector<g::Backend> parse_backends(const std::string& text) {
-  std::vector<g::Backend> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item == "cpu")
-      out.push_back(g::Backend::cpu);
-    else if (item == "cuda")
-      out.push_back(g::Backend::cuda);
-    else {
-      std::fprintf(stderr, "--backend: expected cpu or cuda, got '%s'\n", item.c_str());
-      std::exit(2);
-    }
+    out.push_back(it->second);
   }
   return out;
 }
@@ -174,9 +159,12 @@ Arguments parse_arguments(int argc, char** argv) {
     else if (arg == "--direct-rate")
       args.direct_rate = true;
     else if (arg == "--precision")
-      args.precisions = parse_precisions(next());
+      args.precisions = parse_choices<g::KernelPrecision>(
+          next(), "--precision",
+          {{"double", g::KernelPrecision::double_precision}, {"single", g::KernelPrecision::single_precision}});
     else if (arg == "--backend")
-      args.backends = parse_backends(next());
+      args.backends =
+          parse_choices<g::Backend>(next(), "--backend", {{"cpu", g::Backend::cpu}, {"cuda", g::Backend::cuda}});
     else {
       std::fprintf(stderr, "unknown argument %s\n", arg.c_str());
       std::exit(2);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "gravity/cuda/direct_sum.cuh"
+#include "gravity/cuda/interactions.cuh"
 
 namespace rubble::gravity::cuda::detail {
 namespace {
@@ -34,17 +35,7 @@ __global__ void direct_kernel(const Source* __restrict__ src, int n, double eps2
     const int count = min(kBlock, n - base);
     for (int k = 0; k < count; ++k) {
       const Source s = tile[k];
-      const double dx = me.x - s.x, dy = me.y - s.y, dz = me.z - s.z;
-      const double r2 = dx * dx + dy * dy + dz * dz + eps2;
-      // Same convention as the CPU kernel: r2 == 0 (the target itself without softening)
-      // contributes nothing; with softening the self term is removed after the loop.
-      const double inv = r2 > 0.0 ? rsqrt(r2) : 0.0;
-      const double m_inv = s.w * inv;
-      const double m_inv3 = m_inv * inv * inv;
-      ax += dx * m_inv3;
-      ay += dy * m_inv3;
-      az += dz * m_inv3;
-      phi += m_inv;
+      add_particle(me.x, me.y, me.z, s.x, s.y, s.z, s.w, eps2, ax, ay, az, phi);  // self term removed below
     }
     __syncthreads();
   }

@@ -24,38 +24,22 @@
 #include <vector>
 
 #include "gravity/cuda/device_tree.cuh"
+#include "gravity/morton.hpp"
 
 namespace rubble::gravity::cuda::detail {
 namespace {
 
-constexpr double kCells = static_cast<double>(1u << 21);  // 21 bits per axis, as tree.cpp
-constexpr double kBmaxSafety = 1.0 + 1e-12;               // as tree.cpp
+constexpr double kBmaxSafety = 1.0 + 1e-12;  // as tree.cpp
 constexpr int kBlock = 256;
 
 int blocks_for(std::size_t n) { return static_cast<int>((n + kBlock - 1) / kBlock); }
-
-__device__ std::uint64_t spread_bits(std::uint64_t v) {
-  v &= 0x1fffffULL;
-  v = (v | (v << 32)) & 0x1f00000000ffffULL;
-  v = (v | (v << 16)) & 0x1f0000ff0000ffULL;
-  v = (v | (v << 8)) & 0x100f00f00f00f00fULL;
-  v = (v | (v << 4)) & 0x10c30c30c30c30c3ULL;
-  v = (v | (v << 2)) & 0x1249249249249249ULL;
-  return v;
-}
 
 __global__ void morton_keys(const double* pos, int n, double lox, double loy, double loz, double scale,
                             std::uint64_t* keys, std::uint32_t* index) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   const double lo[3] = {lox, loy, loz};
-  std::uint64_t key = 0;
-  for (int d = 0; d < 3; ++d) {
-    const double q = floor((pos[3 * i + d] - lo[d]) * scale);
-    const auto c = static_cast<std::uint64_t>(fmin(fmax(q, 0.0), kCells - 1.0));
-    key |= spread_bits(c) << (2 - d);
-  }
-  keys[i] = key;
+  keys[i] = morton::key(pos + 3 * static_cast<std::size_t>(i), lo, scale);
   index[i] = static_cast<std::uint32_t>(i);
 }
 
@@ -405,7 +389,7 @@ DeviceTree build_tree(const TreeFieldInput& in, const double* positions, const d
     DeviceBuffer<std::uint64_t> keys(n);
     DeviceBuffer<std::uint32_t> index(n);
     tree.order.allocate(n);
-    const double scale = in.extent > 0 ? kCells / in.extent : 0.0;
+    const double scale = in.extent > 0 ? morton::kCells / in.extent : 0.0;
     morton_keys<<<blocks_for(n), kBlock>>>(positions, ni, in.lo[0], in.lo[1], in.lo[2], scale, keys.get(), index.get());
     check(cudaGetLastError(), "Morton keys");
     DeviceBuffer<std::uint64_t> sorted_keys(n);

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "gravity/cuda/device_tree.cuh"
+#include "gravity/cuda/interactions.cuh"
 
 namespace rubble::gravity::cuda::detail {
 namespace {
@@ -96,17 +97,7 @@ __device__ void evaluate_lists(const WalkArrays& t, const BuiltGroup& g, const i
       const uint2 range = ranges[r];
       for (unsigned j = range.x; j < range.x + range.y; ++j) {
         const Particle s = t.particles[j];
-        const double dx = me.x - s.x, dy = me.y - s.y, dz = me.z - s.z;
-        const double r2 = dx * dx + dy * dy + dz * dz + t.eps2;
-        // r2 == 0: the target itself (or a coincident particle) without softening contributes
-        // nothing, as in the CPU kernels.
-        const double inv = r2 > 0.0 ? rsqrt(r2) : 0.0;
-        const double m_inv = s.m * inv;
-        const double m_inv3 = m_inv * inv * inv;
-        ax += dx * m_inv3;
-        ay += dy * m_inv3;
-        az += dz * m_inv3;
-        phi += m_inv;
+        add_particle(me.x, me.y, me.z, s.x, s.y, s.z, s.m, t.eps2, ax, ay, az, phi);
       }
     }
     for (int c = 0; c < num_cells; ++c) {
