@@ -195,6 +195,15 @@ TEST(Examples, SpinUpStagesHoldTheirAccretionsBodiesAndTheirContactLaw) {
     EXPECT_FALSE(stage.run.until_rest);
   }
   EXPECT_EQ(stages, 6u);  // mu 0.2 and 0.6, F_c 0, 100 and 300 N
+  // run.sh makes the mu = 0.6 aggregate by branching the settled mu = 0.2 one (MU06_FROM=branch):
+  // the two accretions must hold the same grains.
+  const Scene low = load_scene_file(folder / "accretion-mu0.2.toml");
+  const Scene high = load_scene_file(folder / "accretion-mu0.6.toml");
+  ASSERT_EQ(low.model.body_count(), high.model.body_count());
+  for (std::size_t b = 0; b < low.model.body_count(); ++b) {
+    EXPECT_EQ(low.model.sphere_radius(b), high.model.sphere_radius(b));
+    EXPECT_EQ(low.model.mass[b], high.model.mass[b]);
+  }
 }
 
 TEST(DefaultScene, SameSeedSameGrainsOtherSeedOtherGrains) {
