@@ -86,7 +86,12 @@ bool all_finite_and_masses_non_negative(std::span<const double> positions, std::
   constexpr std::size_t kChunk = std::size_t{1} << 16;  // masses per task
   const std::size_t n = masses.size(), chunks = (n + kChunk - 1) / kChunk;
   double zero_sum = 0.0, least_mass = 0.0;
-#pragma omp parallel for reduction(+ : zero_sum) reduction(min : least_mass) if (chunks > 4)
+  if (chunks <= 4) {  // no OpenMP region for small inputs: it costs what the pass does at N ~ 100
+    probe_values(positions.data(), 3 * n, zero_sum, nullptr);
+    probe_values(masses.data(), n, zero_sum, &least_mass);
+    return zero_sum == 0.0 && least_mass >= 0.0;
+  }
+#pragma omp parallel for reduction(+ : zero_sum) reduction(min : least_mass)
   for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
     const std::size_t b = static_cast<std::size_t>(c) * kChunk, e = std::min(n, b + kChunk);
     probe_values(positions.data() + 3 * b, 3 * (e - b), zero_sum, nullptr);

@@ -48,11 +48,28 @@ void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& id
   std::vector<std::array<std::size_t, 256>> counts(static_cast<std::size_t>(slices));
   const auto slice_begin = [&](int s) { return n * static_cast<std::size_t>(s) / static_cast<std::size_t>(slices); };
   for (int shift = 0; shift < 64; shift += 8) {
-#pragma omp parallel for schedule(static, 1) num_threads(slices) if (parallel)
-    for (int s = 0; s < slices; ++s) {
+    const auto count_slice = [&](int s) {
       auto& c = counts[static_cast<std::size_t>(s)];
       c.fill(0);
-      for (std::size_t i = slice_begin(s); i < slice_begin(s + 1); ++i) ++c[(keys[i] >> shift) & 0xff];
+      const std::size_t b = slice_begin(s), e = slice_begin(s + 1);
+      for (std::size_t i = b; i < e; ++i) ++c[(keys[i] >> shift) & 0xff];
+    };
+    const auto scatter_slice = [&](int s) {
+      auto& next = counts[static_cast<std::size_t>(s)];
+      const std::size_t b = slice_begin(s), e = slice_begin(s + 1);
+      for (std::size_t i = b; i < e; ++i) {
+        const std::size_t dst = next[(keys[i] >> shift) & 0xff]++;
+        k2[dst] = keys[i];
+        i2[dst] = idx[i];
+      }
+    };
+    // Small inputs stay off OpenMP altogether: a parallel region, even of one thread, costs
+    // about as much as sorting 125 keys (16 of them a sort).
+    if (parallel) {
+#pragma omp parallel for schedule(static, 1) num_threads(slices)
+      for (int s = 0; s < slices; ++s) count_slice(s);
+    } else {
+      count_slice(0);
     }
     // A digit shared by all keys leaves the order unchanged: skip the pass.
     bool constant = false;
@@ -68,14 +85,11 @@ void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& id
       }
     }
     if (constant) continue;
-#pragma omp parallel for schedule(static, 1) num_threads(slices) if (parallel)
-    for (int s = 0; s < slices; ++s) {
-      auto& next = counts[static_cast<std::size_t>(s)];
-      for (std::size_t i = slice_begin(s); i < slice_begin(s + 1); ++i) {
-        const std::size_t dst = next[(keys[i] >> shift) & 0xff]++;
-        k2[dst] = keys[i];
-        i2[dst] = idx[i];
-      }
+    if (parallel) {
+#pragma omp parallel for schedule(static, 1) num_threads(slices)
+      for (int s = 0; s < slices; ++s) scatter_slice(s);
+    } else {
+      scatter_slice(0);
     }
     keys.swap(k2);
     idx.swap(i2);
@@ -175,15 +189,17 @@ struct Tree::WalkNode {
 void Tree::bounding_cube(std::span<const double> positions, std::array<double, 3>& lo, double& extent) {
   double lx = positions[0], ly = positions[1], lz = positions[2], hx = lx, hy = ly, hz = lz;
   const auto n = static_cast<std::ptrdiff_t>(positions.size() / 3);
-#pragma omp parallel for reduction(min           \
-                                   : lx, ly, lz) \
-    reduction(max                                \
-              : hx, hy, hz) if (n >= static_cast <std::ptrdiff_t>(kParallelKeysMin))
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
+  const auto widen = [&](std::ptrdiff_t si, double& l0, double& l1, double& l2, double& h0, double& h1, double& h2) {
     const auto i = static_cast<std::size_t>(si);
-    lx = std::min(lx, positions[3 * i]), hx = std::max(hx, positions[3 * i]);
-    ly = std::min(ly, positions[3 * i + 1]), hy = std::max(hy, positions[3 * i + 1]);
-    lz = std::min(lz, positions[3 * i + 2]), hz = std::max(hz, positions[3 * i + 2]);
+    l0 = std::min(l0, positions[3 * i]), h0 = std::max(h0, positions[3 * i]);
+    l1 = std::min(l1, positions[3 * i + 1]), h1 = std::max(h1, positions[3 * i + 1]);
+    l2 = std::min(l2, positions[3 * i + 2]), h2 = std::max(h2, positions[3 * i + 2]);
+  };
+  if (n >= static_cast<std::ptrdiff_t>(kParallelKeysMin)) {
+#pragma omp parallel for reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
+    for (std::ptrdiff_t si = 0; si < n; ++si) widen(si, lx, ly, lz, hx, hy, hz);
+  } else {  // no OpenMP region for small inputs: it costs what the loop does at N ~ 100
+    for (std::ptrdiff_t si = 0; si < n; ++si) widen(si, lx, ly, lz, hx, hy, hz);
   }
   lo = {lx, ly, lz};
   extent = std::max({hx - lx, hy - ly, hz - lz});
