@@ -43,6 +43,12 @@ void direct_sum(const GravityOptions& options, std::span<const double> positions
 FieldTimings tree_field(const GravityOptions& options, std::span<const double> positions,
                         std::span<const double> masses, std::span<double> accelerations, std::span<double> potential);
 
+/// tree_field() for compute_field(), which has already checked the input (validate()) and the
+/// backend (require_backend()): no second pass over the particles.
+FieldTimings tree_field_checked(const GravityOptions& options, std::span<const double> positions,
+                                std::span<const double> masses, std::span<double> accelerations,
+                                std::span<double> potential);
+
 /// The tree that tree_field() builds on device 0 (options.leaf_size, group_size, theta), copied
 /// back: for tests that compare it with gravity::Tree. Throws like tree_field().
 detail::BuiltTree built_tree(const GravityOptions& options, std::span<const double> positions,

@@ -1,7 +1,5 @@
 // gravity/cuda.hpp on top of the raw CUDA entry points (built only with the CUDA backend).
 #include <array>
-#include <cstdint>
-#include <limits>
 #include <stdexcept>
 
 #include "gravity/cuda.hpp"
@@ -85,8 +83,12 @@ FieldTimings tree_field(const GravityOptions& options, std::span<const double> p
         "CUDA backend: the GPU tree computes in double precision only (precision single is a "
         "CPU option)");
   require_device();
-  if (masses.size() > std::numeric_limits<std::uint32_t>::max() / 2)
-    throw GravityError("Tree: too many particles (limit 2^31)");
+  return tree_field_checked(options, positions, masses, accelerations, potential);
+}
+
+FieldTimings tree_field_checked(const GravityOptions& options, std::span<const double> positions,
+                                std::span<const double> masses, std::span<double> accelerations,
+                                std::span<double> potential) {
   detail::TreeFieldTimings walk;
   try {
     detail::tree_field(tree_input(options, positions, masses), accelerations.data(),

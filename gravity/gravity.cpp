@@ -144,7 +144,7 @@ FieldTimings compute_field(const GravityOptions& options, std::span<const double
   require_backend(options);
   FieldTimings t;
   if (options.backend == Backend::cuda && options.method == Method::tree)
-    return cuda::tree_field(options, positions, masses, accelerations, potential);
+    return cuda::tree_field_checked(options, positions, masses, accelerations, potential);
   if (options.backend == Backend::cuda) {
     const auto t0 = std::chrono::steady_clock::now();
     cuda::direct_sum(options, positions, masses, accelerations, potential);

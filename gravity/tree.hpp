@@ -49,12 +49,6 @@ class Tree {
     std::array<double, 3> lo{}, hi{};  ///< tight bounding box of the targets [m]
   };
 
-  /// The particles of the last build() in Morton order: index k is order()[k] in the caller's arrays.
-  struct SortedParticles {
-    std::span<const double> x, y, z;  ///< positions [m]
-    std::span<const double> m;        ///< masses [kg]
-  };
-
   /// Work counters of the last evaluate() (summed over targets).
   struct Stats {
     std::size_t nodes = 0;                    ///< nodes in the tree
@@ -87,15 +81,12 @@ class Tree {
   const std::vector<std::uint32_t>& order() const { return order_; }
   /// Counters of the last evaluate().
   const Stats& stats() const { return stats_; }
-  /// Target groups of the last build() (or refit()), in walk order. With nodes(), second_moments()
-  /// and sorted_particles() they are everything a walk needs (tests/gravity/test_cuda.cpp compares
-  /// the tree built on the GPU with them).
+  /// Target groups of the last build() (or refit()), in walk order (tests/gravity/test_cuda.cpp
+  /// compares the groups of the tree built on the GPU with them).
   const std::vector<Group>& groups() const { return groups_; }
   /// Second moments M_ab = sum_k m_k (x_k - c)_a (x_k - c)_b of each node about its centre of mass,
   /// as Mxx Mxy Mxz Myy Myz Mzz [kg m^2], indexed like nodes().
   const std::vector<std::array<double, 6>>& second_moments() const { return second_moments_; }
-  /// Positions and masses in Morton order.
-  SortedParticles sorted_particles() const { return {x_, y_, z_, m_}; }
 
   /// Corner lo and longest side `extent` of the particles' bounding box (positions: 3N, N >= 1):
   /// the cube whose grid gives the Morton keys (gravity/morton.hpp). On all threads from 2^18

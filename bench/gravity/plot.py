@@ -23,25 +23,31 @@ REFERENCE = [  # (label, seconds, median, p99)
 ]
 
 
+def error_vs_time(ax, rows, time_column):
+    """On ax, the median (solid) and p99 (dashed) force error of the rows against their time_column,
+    one curve per multipole order, each point labelled with its θ."""
+    for order, color, name in ((1, "tab:blue", "monopole"), (2, "tab:red", "quadrupole")):
+        pts = sorted(
+            (float(r[time_column]), float(r["median"]), float(r["p99"]), float(r["theta"]))
+            for r in rows
+            if int(float(r["order"])) == order
+        )
+        if not pts:
+            continue
+        t, med, p99, th = zip(*pts)
+        ax.loglog(t, med, "o-", color=color, label=f"tree {name}, median")
+        ax.loglog(t, p99, "s--", color=color, alpha=0.6, label=f"tree {name}, p99")
+        for ti, mi, thi in zip(t, med, th):
+            ax.annotate(f"θ={thi:g}", (ti, mi), textcoords="offset points", xytext=(4, -10), fontsize=7)
+
+
 def main(csv_path, png_path):
     rows = [r for r in csv.DictReader(open(csv_path))
             if r["threads"] in ("1", "1.0") and r.get("precision", "double") == "double"]
     sizes = sorted({int(r["n"]) for r in rows if int(r["n"]) >= 10000})
     fig, axes = plt.subplots(1, len(sizes), figsize=(5 * len(sizes), 4.2), squeeze=False)
     for ax, n in zip(axes[0], sizes):
-        for order, color, name in ((1, "tab:blue", "monopole"), (2, "tab:red", "quadrupole")):
-            pts = sorted(
-                (float(r["cpu_seconds"]), float(r["median"]), float(r["p99"]), float(r["theta"]))
-                for r in rows
-                if int(r["n"]) == n and int(float(r["order"])) == order
-            )
-            if not pts:
-                continue
-            t, med, p99, th = zip(*pts)
-            ax.loglog(t, med, "o-", color=color, label=f"tree {name}, median")
-            ax.loglog(t, p99, "s--", color=color, alpha=0.6, label=f"tree {name}, p99")
-            for ti, mi, thi in zip(t, med, th):
-                ax.annotate(f"θ={thi:g}", (ti, mi), textcoords="offset points", xytext=(4, -10), fontsize=7)
+        error_vs_time(ax, [r for r in rows if int(r["n"]) == n], "cpu_seconds")
         if n == 100000:
             for (label, t, med, p99), m in zip(REFERENCE, ("^", "v")):
                 ax.loglog([t], [med], m, color="k", label=label + " (median)")

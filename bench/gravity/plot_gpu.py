@@ -15,6 +15,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from plot import error_vs_time  # noqa: E402  (bench/gravity/plot.py, beside this file)
 
 
 def main(csv_path, png_path):
@@ -42,17 +43,8 @@ def main(csv_path, png_path):
     left.set_title("θ = 0.5 quadrupole: the same tree and errors on both")
     left.grid(True, which="both", alpha=0.3)
     left.legend(fontsize=7)
-    for order, color, name in ((1, "tab:blue", "monopole"), (2, "tab:red", "quadrupole")):
-        pts = sorted((float(r["seconds"]), float(r["median"]), float(r["p99"]), float(r["theta"])) for r in rows
-                     if r["backend"] == "cuda" and r["dist"] == "uniform" and int(r["n"]) == 1000000
-                     and int(float(r["order"])) == order)
-        if not pts:
-            continue
-        t, med, p99, theta = zip(*pts)
-        right.loglog(t, med, "o-", color=color, label=f"{name}, median")
-        right.loglog(t, p99, "s--", color=color, alpha=0.6, label=f"{name}, p99")
-        for ti, mi, th in zip(t, med, theta):
-            right.annotate(f"θ={th:g}", (ti, mi), textcoords="offset points", xytext=(4, -10), fontsize=7)
+    error_vs_time(right, [r for r in rows if r["backend"] == "cuda" and r["dist"] == "uniform"
+                          and int(r["n"]) == 1000000], "seconds")
     right.set_xlabel("seconds per evaluation on the GPU (wall)")
     right.set_ylabel("relative acceleration error")
     right.set_title("GPU tree, uniform sphere, N = 10⁶")

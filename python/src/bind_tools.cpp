@@ -174,7 +174,6 @@ py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses,
   const std::span<double> a(acceleration.mutable_data(), 3 * n);
   const std::span<double> phi(potential.mutable_data(), with_potential ? n : 0);
   gravity::validate(options, x, mass, a, phi);
-  gravity::require_backend(options);  // BackendUnavailable (a GravityError) with the reason
   gravity::FieldTimings timings;
   {
     py::gil_scoped_release release;
