@@ -20,7 +20,7 @@
 //    computed here independently of compute_metrics and compared with its inertia_aspect_ratio.
 // Independent of the run loop's own bookkeeping: the final state is read back from the run file.
 // With the rest criterion of issue 18 (speed quantile, Z and contacts held 0.5 T) the run stops at
-// t = 11 459 s after 4 095 steps, Z = 5.71 (force-bearing), 67 s CPU on one thread, almost all of it
+// t = 11 459 s after 4 095 steps, Z = 5.71 (force-bearing), 86 s CPU on one thread, two thirds of it
 // Newton polishes of the compact aggregate (the energy criterion stopped near t = 6 000 s, ~7 s).
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -104,7 +104,7 @@ Heap settle_heap(double rolling_friction, std::uint64_t arrangement) {
 // highest grain's top) is at least 20% larger with mu_r = 0.2 than with mu_r = 0 (measured: 0.635
 // against 0.391, ratio 1.62; 1.58-1.83 for the next four groups of four arrangements), and each heap
 // has come to rest: 90% of its grains slower than 1 cm/s at t = 1 s (measured: below 1e-6 m/s; the
-// collapse is over by 0.8 s, and with mu_r = 0 a grain may still roll across the floor). About 4 s of
+// collapse is over by 0.8 s, and with mu_r = 0 a grain may still roll across the floor). About 6 s of
 // CPU on the shared 2-core machine.
 TEST(RollingHeap, RollingResistanceMakesASteeperHeap) {
   double free = 0.0, held = 0.0;

@@ -531,7 +531,7 @@ void expect_at_rest(const PileAtRest& pile) {
   EXPECT_LT(pile.worst_resultant_error, 0.05);
 }
 
-// 98 grains: two layers of the pour, a pile two to three grains deep (16 s of CPU on one thread).
+// 98 grains: two layers of the pour, a pile two to three grains deep (20 s of CPU on one thread).
 TEST(StabilityPolyhedra, PileOfPolyhedraAtRestWithDefaults) { expect_at_rest(pour_and_rest(98, 12000)); }
 
 // 300 grains, six layers: outside the gate (RUBBLE_LONG_TESTS=1; 189 s of CPU on one thread).
