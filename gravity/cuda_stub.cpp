@@ -22,6 +22,7 @@ FieldTimings tree_field_checked(const GravityOptions&, std::span<const double>, 
                                 std::span<double>, std::span<double>) {
   throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }
+
 detail::BuiltTree built_tree(const GravityOptions&, std::span<const double>, std::span<const double>) {
   throw BackendUnavailable("CUDA backend: " + unavailable_reason());
 }

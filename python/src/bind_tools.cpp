@@ -173,10 +173,11 @@ py::tuple gravity_field(const DoubleArray& positions, const DoubleArray& masses,
   const std::span<const double> x(positions.data(), 3 * n), mass(masses.data(), n);
   const std::span<double> a(acceleration.mutable_data(), 3 * n);
   const std::span<double> phi(potential.mutable_data(), with_potential ? n : 0);
-  gravity::validate(options, x, mass, a, phi);
   gravity::FieldTimings timings;
   {
     py::gil_scoped_release release;
+    // compute_field checks the input and the backend itself (GravityError, BackendUnavailable
+    // with the reason); the exception reaches Python once the GIL is taken back.
     timings = gravity::compute_field(options, x, mass, a, phi);
   }
   return py::make_tuple(acceleration, with_potential ? py::object(potential) : py::object(py::none()),
