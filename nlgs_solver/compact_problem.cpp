@@ -1,6 +1,8 @@
 // The gather and scatter of the sweeps' compact copy (compact_problem.hpp).
 #include "nlgs_solver/compact_problem.hpp"
 
+#include <Eigen/LU>  // Mat3::inverse
+
 #include "nlgs_solver/prepare.hpp"
 
 namespace rubble {
@@ -100,6 +102,7 @@ CompactProblem gather_compact_problem(const Model& model, const State& state, co
       const Contact& c = contacts[plan.order[p]];
       out.points[p] = {c.frame,
                        c.delassus,
+                       c.delassus.inverse(),
                        c.arm_a,
                        c.arm_b,
                        c.impulse,

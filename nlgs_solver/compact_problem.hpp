@@ -30,6 +30,7 @@ struct CompactProblem {
   struct Point {
     Mat3 frame;                     ///< contact frame (normal, t, s) as columns, world
     Mat3 delassus;                  ///< W_kk in the contact frame
+    Mat3 delassus_inverse;          ///< W_kk^-1, for the local solver's sticking test
     Vec3 arm_a, arm_b;              ///< contact point minus each body's centre, world
     Vec3 impulse;                   ///< r_k in the contact frame
     double friction_coefficient;    ///< mu
@@ -67,6 +68,8 @@ struct CompactProblem {
   std::size_t size() const { return points.size(); }
   /// W_kk of point k.
   const Mat3& delassus(std::size_t k) const { return points[k].delassus; }
+  /// W_kk^-1 of point k.
+  const Mat3& delassus_inverse(std::size_t k) const { return points[k].delassus_inverse; }
   /// mu of point k.
   double friction_coefficient(std::size_t k) const { return points[k].friction_coefficient; }
   /// r_k of point k.
@@ -180,6 +183,8 @@ struct ExtendedProblem {
   std::size_t size() const { return compact.size(); }
   /// W_kk of point k.
   const Mat3& delassus(std::size_t k) const { return compact.delassus(k); }
+  /// W_kk^-1 of point k.
+  const Mat3& delassus_inverse(std::size_t k) const { return compact.delassus_inverse(k); }
   /// mu of point k.
   double friction_coefficient(std::size_t k) const { return compact.friction_coefficient(k); }
   /// r_k of point k.

@@ -1,5 +1,6 @@
 #include "nlgs_solver/local_problem.hpp"
 
+#include <Eigen/LU>  // Mat3::inverse
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -19,10 +20,12 @@ namespace {
 struct ExplicitProblem {
   const LocalProblem& p;
   std::vector<Mat3> diagonal_blocks;
+  std::vector<Mat3> inverse_blocks;  ///< diagonal_blocks[k].inverse(), filled before the sweeps
   std::vector<Vec3> r;
 
   std::size_t size() const { return p.contact_count(); }
   const Mat3& delassus(std::size_t k) const { return diagonal_blocks[k]; }
+  const Mat3& delassus_inverse(std::size_t k) const { return inverse_blocks[k]; }
   double friction_coefficient(std::size_t k) const { return p.mu[k]; }
   Vec3& impulse(std::size_t k) { return r[k]; }
   Vec3 local_velocity(std::size_t k) const {
@@ -382,7 +385,7 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
       problem.W.row_start.size() != 3 * n + 1) {
     throw std::invalid_argument("local problem: W, q and mu sizes disagree");
   }
-  ExplicitProblem explicit_problem{problem, std::vector<Mat3>(n, Mat3::Zero()), std::vector<Vec3>(n, Vec3::Zero())};
+  ExplicitProblem explicit_problem{problem, std::vector<Mat3>(n, Mat3::Zero()), {}, std::vector<Vec3>(n, Vec3::Zero())};
   for (std::size_t row = 0; row < 3 * n; ++row) {
     for (int e = problem.W.row_start[row]; e < problem.W.row_start[row + 1]; ++e) {
       const auto column = static_cast<std::size_t>(problem.W.column[static_cast<std::size_t>(e)]);
@@ -393,6 +396,8 @@ LocalProblemSolution solve_local_problem(const LocalProblem& problem, const Loca
       }
     }
   }
+  explicit_problem.inverse_blocks.reserve(n);
+  for (const Mat3& block : explicit_problem.diagonal_blocks) explicit_problem.inverse_blocks.push_back(block.inverse());
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), std::size_t{0});
   if (options.order == SweepOrder::shuffled) {

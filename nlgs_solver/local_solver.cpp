@@ -129,13 +129,18 @@ bool slide_by_angle_scan(const Mat3& W, const Vec3& u_free, double mu, Vec3& imp
 }  // namespace
 
 LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
+  if (u_free.x() >= 0.0) return LocalSolution{};  // separating without any impulse: open
+  // Fixed-size 3x3 inverse by cofactors: W is symmetric positive definite (H^T M^-1 H), so no
+  // pivoting is needed, and it is several times cheaper than an LU factorisation.
+  return solve_local_contact(W, W.inverse(), u_free, mu);
+}
+
+LocalSolution solve_local_contact(const Mat3& W, const Mat3& W_inverse, const Vec3& u_free, double mu) {
   LocalSolution solution;
   if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open
 
   // Sticking: u = 0.
-  // Fixed-size 3x3 inverse by cofactors: W is symmetric positive definite (H^T M^-1 H), so no
-  // pivoting is needed, and it is several times cheaper than an LU factorisation.
-  const Vec3 stick = -(W.inverse() * u_free);
+  const Vec3 stick = -(W_inverse * u_free);
   const double stick_tangential = tangential_norm(stick);
   if (stick.x() > 0.0 && stick_tangential <= mu * stick.x()) {
     solution.impulse = stick;

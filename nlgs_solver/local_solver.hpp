@@ -19,4 +19,10 @@ struct LocalSolution {
 /// angle search as fallback for strongly coupled blocks.
 LocalSolution solve_local_contact(const Mat3& delassus, const Vec3& free_velocity, double friction_coefficient);
 
+/// The same solve with W^-1 given: the sweeps solve each contact hundreds of times a step with the
+/// same W, so they invert it once (CompactProblem::Point::delassus_inverse) instead of in every
+/// sticking test. `delassus_inverse` must be delassus.inverse() for the result to be the same bits.
+LocalSolution solve_local_contact(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
+                                  double friction_coefficient);
+
 }  // namespace rubble

@@ -4,6 +4,7 @@
 //   std::size_t size() const;                     number of contacts
 //   Vec3 local_velocity(std::size_t k) const;     u_k = (W r + q)_k for the current impulses
 //   const Mat3& delassus(std::size_t k) const;    W_kk
+//   const Mat3& delassus_inverse(std::size_t k) const;  W_kk^-1 (computed once, as W_kk.inverse())
 //   double friction_coefficient(std::size_t k) const;
 //   Vec3& impulse(std::size_t k);                 r_k
 //   void apply_impulse_change(std::size_t k, const Vec3& delta);  keeps later u_j consistent
@@ -38,7 +39,7 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     // rho = W_nn puts the residual in velocity units, independent of the mass scale.
     result.residual_squared += natural_map(r, u, mu, W(0, 0)).squaredNorm();
     const Vec3 free_velocity = u - W * r;  // what u would be without this contact's impulse
-    Vec3 next = solve_local_contact(W, free_velocity, mu).impulse;
+    Vec3 next = solve_local_contact(W, problem.delassus_inverse(k), free_velocity, mu).impulse;
     if (relaxation != 1.0) next = relaxation * next + (1.0 - relaxation) * r;
     const Vec3 delta = next - r;
     r = next;

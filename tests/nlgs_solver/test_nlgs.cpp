@@ -4,6 +4,7 @@
 // bit for bit, whatever the thread count.
 #include <gtest/gtest.h>
 #include <omp.h>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -195,6 +196,9 @@ struct ReferenceProblem {
 
   std::size_t size() const { return contacts.size(); }
   const Mat3& delassus(std::size_t k) const { return contacts[k].delassus; }
+  // Inverted at every call, as the local solver did before the compact problem kept the inverse:
+  // the threaded sweeps below must give the same bits from their stored one.
+  Mat3 delassus_inverse(std::size_t k) const { return contacts[k].delassus.inverse(); }
   double friction_coefficient(std::size_t k) const { return contacts[k].friction_coefficient; }
   Vec3& impulse(std::size_t k) { return contacts[k].impulse; }
   Vec3 local_velocity(std::size_t k) const {
