@@ -28,6 +28,12 @@ else
   echo "clang-tidy: no revision $tidy_base to compare with (a checkout without history): skipped"
 fi
 echo "== tests =="
+# Threads that wait for work sleep instead of spinning: ctest runs two tests at once on a 2-core
+# machine, each with two OpenMP threads, and a spinning thread took the core its neighbour needed
+# (Accretion.OneHundredTwentyFiveSpheres...: 35 % of its CPU in libgomp's spin-wait; with
+# OMP_WAIT_POLICY=passive, on a loaded 2-core machine, 115 -> 83 s of CPU and 148 -> 122 s wall;
+# test_determinism 20.7 -> 14.9 s of CPU, 24.6 -> 20.1 s wall). Results do not depend on it.
+export OMP_WAIT_POLICY=passive
 # Two long polyhedron pours (200 and 300 random polyhedra, 10^4 steps and more each, several CPU
 # minutes since the solver's residual became relative to the impulses) are left out of the gate
 # and run with RUBBLE_LONG_TESTS=1 (README, "Tests"): the gate must finish on a shared 2-core
