@@ -62,6 +62,17 @@ void settings_from_scene(const RunReader& reader, PostOptions& options, std::ost
   }
 }
 
+/// The run's sweep cap and tolerance, from the scene stored in the run file; a scene this rubble
+/// cannot parse leaves them unknown (settings_from_scene has warned about it already).
+SolverLimits solver_limits_from_scene(const RunReader& reader) {
+  try {
+    const Scene scene = parse_scene(reader.scene_text(), reader.path().string() + ":/scene");
+    return {scene.run.step.solver.max_iterations, scene.run.step.solver.tolerance};
+  } catch (const std::exception&) {
+    return {};
+  }
+}
+
 PlotOptions plot_options(const PostArguments& args) {
   PlotOptions plot;
   plot.python = args.python;
@@ -85,6 +96,7 @@ int post_command(const PostArguments& args) {
         settings_from_scene(reader, settings, std::cerr);
         return settings.potential;
       };
+      options.solver_limits_of = solver_limits_from_scene;
       options.log = log;
       options.warnings = &std::cerr;
       std::vector<std::filesystem::path> inputs(args.study.begin(), args.study.end());

@@ -69,6 +69,13 @@ struct PostOptions {
 /// with matplotlib, the script failed) are a warning (PostOptions::warnings), not an error.
 std::vector<std::filesystem::path> post_process_run(const std::filesystem::path& run_file, const PostOptions& options);
 
+/// The solver settings a run was made with (its scene's [solver]), for the study's count of window
+/// steps that stopped at the sweep cap.
+struct SolverLimits {
+  int max_iterations = 0;  ///< NLGS sweeps at most; 0: not known (no step is counted as capped)
+  double tolerance = 0.0;  ///< the sweep residual asked for; 0: not known
+};
+
 /// What post_process_study does.
 struct StudyOptions {
   std::filesystem::path output_directory;  ///< where study.csv and the PNGs go
@@ -87,6 +94,10 @@ struct StudyOptions {
   /// The run's gravity, for the escape test of the last snapshot (AggregateMetrics::escaping_grains);
   /// unset: no gravity, no grain counted as escaping. `rubble post` reads it from the run's scene.
   std::function<PotentialSettings(const RunReader&)> potential_of;
+  /// The run's solver settings, for the steps of the window that stopped at the sweep cap (their
+  /// window values carry the solver's error: counted in study.csv and study.txt, and warned
+  /// about). Unset: not counted. `rubble post` reads them from the run's scene.
+  std::function<SolverLimits(const RunReader&)> solver_limits_of;
   std::ostream* log = nullptr;       ///< progress (nullptr: silent)
   std::ostream* warnings = nullptr;  ///< as PostOptions::warnings
 };

@@ -61,6 +61,10 @@ struct StudyRun {
   double max_overlap = 0.0;              ///< m, deepest overlap over the window
   double detached = 0.0;                 ///< detached grains at the last snapshot
   double escaping = 0.0;                 ///< escaping grains at the last snapshot
+  SolverLimits solver{};                 ///< the run's sweep cap and tolerance (0: not known)
+  std::size_t window_steps = 0;          ///< steps of the series in the window
+  std::size_t capped_steps = 0;          ///< of them, those that stopped at the sweep cap
+  double max_residual = std::nan("");    ///< the largest sweep residual at a step's end in the window
   std::vector<double> energy_time;       ///< s, <E_c>(t) thinned for the plot: times
   std::vector<double> energy;            ///< J, <E_c>(t) thinned for the plot: values
 };

@@ -111,6 +111,28 @@ void add_energy_curve(const RunSeries& series, double stable_after, StudyRun& r)
   if (r.at_rest) r.rest_time = series.time.back();
 }
 
+/// The solver's accuracy over the window: steps that stopped at the sweep cap, and the largest
+/// residual a step ended with. A run at the cap for much of the window holds its grains with
+/// impulses short of the tolerance; its window values are then as good as that residual.
+void count_capped_steps(const RunSeries& series, double stable_after, StudyRun& r) {
+  for (std::size_t k = 0; k < series.time.size(); ++k) {
+    if (series.time[k] < stable_after) continue;
+    ++r.window_steps;
+    if (r.solver.max_iterations > 0 && series.iterations[k] >= r.solver.max_iterations) ++r.capped_steps;
+    if (std::isnan(r.max_residual) || series.residual[k] > r.max_residual) r.max_residual = series.residual[k];
+  }
+}
+
+/// Warns when steps of the window stopped at the sweep cap.
+void warn_capped_steps(const StudyOptions& options, const StudyRun& r) {
+  if (r.capped_steps == 0 || options.warnings == nullptr) return;
+  *options.warnings << "rubble post: study: " << r.path << ": " << r.capped_steps << " of the " << r.window_steps
+                    << " steps in the window stopped at the sweep cap (" << r.solver.max_iterations
+                    << " sweeps; residual up to " << significant(r.max_residual) << " against the tolerance "
+                    << parameter_text(r.solver.tolerance)
+                    << "): its window values are as accurate as that residual (study.csv capped_steps)\n";
+}
+
 /// Whether the run takes part in the fits and plots: it ran to its end (at rest, or at its end
 /// time: the paper's runs, too, ran to a fixed time past the window) and reached the window. A
 /// run cut short (a signal, a failure, still running) or short of the window is added to
@@ -160,7 +182,10 @@ std::optional<StudyRun> reduce_run(const fs::path& run, const StudyOptions& opti
   const RunSeries series = reader->read_series();
   check_series(run, series);
   add_energy_curve(series, options.stable_after, r);
+  if (options.solver_limits_of) r.solver = options.solver_limits_of(*reader);
+  count_capped_steps(series, options.stable_after, r);
   decide_inclusion(options, r, left_out);
+  warn_capped_steps(options, r);
   if (options.log != nullptr) {
     *options.log << "rubble post: study: " << r.path << " (" << r.shape << ", n_s = " << r.grains
                  << ", mu = " << parameter_text(r.friction) << ", " << r.snapshots_used << " snapshots in the "

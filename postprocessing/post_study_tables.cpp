@@ -62,7 +62,8 @@ std::vector<std::string> study_csv_header() {
     header.push_back(name);
     if (has_spread(name)) header.push_back(name + "_spread");
   }
-  header.insert(header.end(), {"max_overlap", "max_overlap_over_mean_d", "detached_grains", "escaping_grains"});
+  header.insert(header.end(), {"max_overlap", "max_overlap_over_mean_d", "detached_grains", "escaping_grains",
+                               "window_steps", "capped_steps", "max_window_residual"});
   return header;
 }
 
@@ -87,8 +88,10 @@ std::vector<std::string> study_csv_row(const StudyRun& r, const StudyOptions& op
     row.push_back(significant(r.values.at(name).mean));
     if (has_spread(name)) row.push_back(significant(r.values.at(name).deviation));
   }
-  row.insert(row.end(), {significant(r.max_overlap), significant(r.max_overlap / r.values.at("mean_diameter").mean),
-                         count_text(r.detached), count_text(r.escaping)});
+  row.insert(row.end(),
+             {significant(r.max_overlap), significant(r.max_overlap / r.values.at("mean_diameter").mean),
+              count_text(r.detached), count_text(r.escaping), std::to_string(r.window_steps),
+              r.solver.max_iterations > 0 ? std::to_string(r.capped_steps) : "", significant(r.max_residual)});
   return row;
 }
 
@@ -205,17 +208,22 @@ fs::path write_study_text(const fs::path& out, const std::vector<StudyRun>& stud
                 "Window: t >= %s s (%s min). Values: mean over the window's snapshots; runs marked * did not "
                 "reach the window (final snapshot shown), ! were cut short (neither at rest nor at their end "
                 "time); both are left out of the fits and plots unless --include-unfinished. rest_min -: the "
-                "run did not stop at rest.\n",
+                "run did not stop at rest. cap%%: of the window's steps, those that stopped at the solver's "
+                "sweep cap (their impulses short of the tolerance).\n",
                 parameter_text(options.stable_after).c_str(), parameter_text(options.stable_after / 60.0).c_str());
   text << line.data();
-  std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n", "shape",
-                "n_s", "mu", "", "peak_min", "rest_min", "plateau_J", "Z", "Z_nr", "nu", "nu_I", "D/<d>", "D/d*",
-                "overlap/d", "det", "esc");
+  std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s %5s\n",
+                "shape", "n_s", "mu", "", "peak_min", "rest_min", "plateau_J", "Z", "Z_nr", "nu", "nu_I", "D/<d>",
+                "D/d*", "overlap/d", "det", "esc", "cap%");
   text << line.data();
   for (const StudyRun& r : study) {
     const bool ran_to_end = r.at_rest || r.status == "end_time";
     const std::string flag = std::string(r.reached_window ? "" : "*") + (ran_to_end ? "" : "!");
-    std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s\n",
+    const std::string capped = r.solver.max_iterations > 0 && r.window_steps > 0
+                                   ? std::to_string(std::llround(100.0 * static_cast<double>(r.capped_steps) /
+                                                                 static_cast<double>(r.window_steps)))
+                                   : "-";
+    std::snprintf(line.data(), line.size(), "%-9s %6s %6s %2s %8s %8s %9s %6s %6s %6s %6s %8s %8s %9s %5s %5s %5s\n",
                   r.shape.c_str(), count_text(r.grains).c_str(), parameter_text(r.friction).c_str(), flag.c_str(),
                   significant(r.peak_time / 60.0).c_str(), r.at_rest ? significant(r.rest_time / 60.0).c_str() : "-",
                   r.reached_window ? significant(r.plateau).c_str() : "-",
@@ -226,7 +234,7 @@ fs::path write_study_text(const fs::path& out, const std::vector<StudyRun>& stud
                   significant(r.values.at("D_max_over_mean_d").mean).c_str(),
                   significant(r.values.at("D_max_over_d_star").mean).c_str(),
                   significant(r.max_overlap / r.values.at("mean_diameter").mean).c_str(),
-                  count_text(r.detached).c_str(), count_text(r.escaping).c_str());
+                  count_text(r.detached).c_str(), count_text(r.escaping).c_str(), capped.c_str());
     text << line.data();
   }
   text.close();

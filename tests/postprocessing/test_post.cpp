@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <array>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "postprocessing/run_file.hpp"
+#include "postprocessing/run_reader.hpp"
 
 namespace rubble {
 namespace {
@@ -67,6 +69,9 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
       row.step = k + 1;
       row.time = 0.1 * (k + 1);
       row.stage_seconds = seconds;
+      // The last step (in the window t >= 0.45 below) stopped at a sweep cap of 50.
+      row.iterations = k == 5 ? 50 : 7;
+      row.residual = k == 5 ? 3e-4 : 5e-5;
       file.append_series(row);
       state.time = row.time;
       state.step = row.step;
@@ -94,7 +99,10 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   StudyOptions study;
   study.output_directory = dir / "study";
   study.plots = false;
-  study.stable_after = 0.45;         // snapshots at t = 0.5 and 0.6
+  study.stable_after = 0.45;  // snapshots at t = 0.5 and 0.6
+  study.solver_limits_of = [](const RunReader&) { return SolverLimits{50, 1e-4}; };
+  std::ostringstream study_warnings;
+  study.warnings = &study_warnings;
   post_process_study({dir}, study);  // finds the three run.h5, skips post/metrics.h5
   auto study_rows = read_csv(dir / "study" / "study.csv");
   ASSERT_EQ(study_rows.size(), 4u);
@@ -119,6 +127,14 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   EXPECT_EQ(cell(1, "rest_time"), "0.6000");         // the run's end, at rest
   EXPECT_EQ(cell(1, "D_max_over_mean_d"), "5.000");  // 5 unit spheres in a row
   EXPECT_EQ(cell(1, "detached_grains"), "0");
+  // One of the window's two steps stopped at the sweep cap: counted, its residual shown, warned about.
+  EXPECT_EQ(cell(1, "window_steps"), "2");
+  EXPECT_EQ(cell(1, "capped_steps"), "1");
+  EXPECT_EQ(cell(1, "max_window_residual"), "3.000e-04");
+  EXPECT_NE(study_warnings.str().find(run.string() + ": 1 of the 2 steps in the window stopped at the sweep cap (50 "
+                                                     "sweeps; residual up to 3.000e-04 against the tolerance 0.0001)"),
+            std::string::npos)
+      << study_warnings.str();
   // The stopped run is listed with its status and left out of the plots; no rest time.
   EXPECT_EQ(cell(2, "status"), "interrupted");
   EXPECT_EQ(cell(2, "included"), "0");
@@ -133,6 +149,16 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   EXPECT_TRUE(fs::exists(dir / "study" / "study.txt"));
   EXPECT_TRUE(fs::exists(dir / "study" / "study_fits.csv"));
   EXPECT_TRUE(fs::exists(dir / "study" / "study_kinetic_energy.csv"));
+  std::ifstream study_text(dir / "study" / "study.txt");
+  const std::string table((std::istreambuf_iterator<char>(study_text)), std::istreambuf_iterator<char>());
+  EXPECT_NE(table.find("  cap%\n"), std::string::npos) << table;
+  EXPECT_NE(table.find("    50\n"), std::string::npos) << table;  // 1 of 2 steps: 50 %
+  // Without the solver's settings nothing is counted as capped (not "0": unknown).
+  study.solver_limits_of = nullptr;
+  post_process_study({dir}, study);
+  study_rows = read_csv(dir / "study" / "study.csv");
+  EXPECT_EQ(cell(1, "capped_steps"), "");
+  EXPECT_EQ(cell(1, "max_window_residual"), "3.000e-04");
   study.include_unfinished = true;
   post_process_study({dir}, study);
   study_rows = read_csv(dir / "study" / "study.csv");
