@@ -122,6 +122,38 @@ TEST(LocalProblem, NewtonPolishSolvesRankDeficientProblemsWhereSweepsStall) {
   }
 }
 
+// Frictionless contacts, some of them separating: the polish takes the open contacts' and the
+// tangential components outright (unit rows of the Alart-Curnier Jacobian) and factorises the
+// closed contacts' normal rows only. From r = 0 it must reach 1e-12 in a few Newton steps with
+// no tangential impulse and none on the separating contacts.
+TEST(LocalProblem, NewtonPolishSolvesFrictionlessProblemsWithOpenContacts) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    LocalProblem p = rank_deficient_problem(12, 24, seed);
+    std::fill(p.mu.begin(), p.mu.end(), 0.0);
+    for (std::size_t k = 0; k < 3; ++k) p.q[3 * k] += 50.0;  // moving apart fast: open at the solution
+    LocalProblemOptions options;
+    options.tolerance = 1e-12;
+    std::vector<double> r(p.q.size(), 0.0);
+    std::vector<double> u = local_velocities(p, r);
+    double error = fclib_error(p, r, u);
+    const int steps = polish_solution(p, options, r, u, error);
+    EXPECT_GT(steps, 0) << "seed " << seed;
+    EXPECT_LE(steps, 12) << "seed " << seed;
+    EXPECT_LE(error, 1e-12) << "seed " << seed;
+    EXPECT_LE(fclib_error(p, r, u), 1e-12) << "seed " << seed;
+    double largest_normal = 0.0;
+    for (std::size_t k = 0; k < p.contact_count(); ++k) {
+      largest_normal = std::max(largest_normal, r[3 * k]);
+      EXPECT_EQ(r[3 * k + 1], 0.0) << "seed " << seed << " contact " << k;
+      EXPECT_EQ(r[3 * k + 2], 0.0) << "seed " << seed << " contact " << k;
+      if (k < 3) {
+        EXPECT_EQ(r[3 * k], 0.0) << "seed " << seed << " separating contact " << k;
+      }
+    }
+    EXPECT_GT(largest_normal, 0.1) << "seed " << seed << ": no contact pressed";
+  }
+}
+
 TEST(LocalProblem, RejectsInconsistentSizes) {
   LocalProblem p = random_problem(2, 1);
   p.mu.push_back(0.1);
