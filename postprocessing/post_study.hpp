@@ -91,6 +91,11 @@ std::filesystem::path write_study_csv(const std::filesystem::path& out, const st
 /// of the included runs; returns its path.
 std::filesystem::path write_study_fits(const std::filesystem::path& out, const std::vector<StudyRun>& study);
 
+/// study_means.csv: per parameter set (shape, mu, n_s) of the included runs, the number of runs
+/// (seeds) and the mean and standard deviation over them of each run's window means, peak and
+/// plateau; returns its path.
+std::filesystem::path write_study_means(const std::filesystem::path& out, const std::vector<StudyRun>& study);
+
 /// study_kinetic_energy.csv: the thinned <E_c>(t) curve of every run; returns its path.
 std::filesystem::path write_study_kinetic_energy(const std::filesystem::path& out, const std::vector<StudyRun>& study);
 

@@ -10,6 +10,8 @@
 #include <ostream>
 #include <set>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 #include "postprocessing/post.hpp"
 #include "postprocessing/post_detail.hpp"
@@ -187,6 +189,52 @@ fs::path write_study_fits(const fs::path& out, const std::vector<StudyRun>& stud
   return path;
 }
 
+fs::path write_study_means(const fs::path& out, const std::vector<StudyRun>& study) {
+  // Each run's window mean is one sample: the spread is the seeds' (n - 1 in the denominator),
+  // not the window's, which study.csv gives per run.
+  using RunValue = double (*)(const StudyRun&);
+  const std::vector<std::pair<std::string, RunValue>> quantities{
+      {"Z_max", [](const StudyRun& r) { return r.values.at("Z_max").mean; }},
+      {"Z_without_rattlers", [](const StudyRun& r) { return r.values.at("Z_without_rattlers").mean; }},
+      {"packing_fraction", [](const StudyRun& r) { return r.values.at("packing_fraction").mean; }},
+      {"inertia_packing_fraction", [](const StudyRun& r) { return r.values.at("inertia_packing_fraction").mean; }},
+      {"D_max_over_mean_d", [](const StudyRun& r) { return r.values.at("D_max_over_mean_d").mean; }},
+      {"D_max_over_d_star", [](const StudyRun& r) { return r.values.at("D_max_over_d_star").mean; }},
+      {"peak_mean_kinetic_energy", [](const StudyRun& r) { return r.peak_energy; }},
+      {"peak_time", [](const StudyRun& r) { return r.peak_time; }},
+      {"plateau_mean_kinetic_energy", [](const StudyRun& r) { return r.plateau; }},
+  };
+  std::vector<std::string> header{"shape", "friction", "grains", "runs"};
+  for (const auto& [name, value] : quantities) {
+    header.push_back(name);
+    header.push_back(name + "_spread");
+  }
+  fs::path path = out / "study_means.csv";
+  CsvWriter csv(path, header);
+  std::set<std::tuple<std::string, double, double>> written;
+  for (const StudyRun& first : study) {  // the table's order: shape, mu, n_s
+    if (!first.included || !written.insert({first.shape, first.friction, first.grains}).second) continue;
+    std::vector<const StudyRun*> seeds;
+    for (const StudyRun& r : study) {
+      if (r.included && r.shape == first.shape && r.friction == first.friction && r.grains == first.grains) {
+        seeds.push_back(&r);
+      }
+    }
+    std::vector<std::string> row{first.shape, parameter_text(first.friction), count_text(first.grains),
+                                 std::to_string(seeds.size())};
+    for (const auto& [name, value] : quantities) {
+      std::vector<double> samples;
+      for (const StudyRun* r : seeds) samples.push_back(value(*r));
+      const Spread over_seeds = spread(samples);
+      row.push_back(significant(over_seeds.mean));
+      row.push_back(significant(over_seeds.deviation));
+    }
+    csv.text_row(row);
+  }
+  csv.close();
+  return path;
+}
+
 fs::path write_study_kinetic_energy(const fs::path& out, const std::vector<StudyRun>& study) {
   fs::path path = out / "study_kinetic_energy.csv";
   CsvWriter csv(path, {"row", "time", "mean_kinetic_energy"});
@@ -257,6 +305,7 @@ std::vector<std::filesystem::path> post_process_study(const std::vector<std::fil
   std::vector<std::filesystem::path> written{post_detail::write_study_csv(out, study.runs, options)};
   post_detail::require_included_runs(study, options);  // study.csv is written all the same
   written.push_back(post_detail::write_study_fits(out, study.runs));
+  written.push_back(post_detail::write_study_means(out, study.runs));
   written.push_back(post_detail::write_study_kinetic_energy(out, study.runs));
   written.push_back(post_detail::write_study_text(out, study.runs, options));
   if (options.plots && post_detail::run_plots("study", "", out, options.plot, options.log, options.warnings)) {

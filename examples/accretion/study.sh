@@ -6,7 +6,7 @@
 # Usage: examples/accretion/study.sh [RUBBLE] [OUT_DIR] [RUN...]
 #   RUBBLE   default build/ci/apps/rubble
 #   OUT_DIR  default accretion-study-output: the runs go to OUT_DIR/runs/RUN/, the study to
-#            OUT_DIR/study/ (study.csv, study.txt, study_fits.csv, the PNGs)
+#            OUT_DIR/study/ (study.csv, study.txt, study_means.csv, study_fits.csv, the PNGs)
 #   RUN...   which runs to make, in this order (default: all of SET below); names are
 #            SCENE-seedK, SCENE a file of examples/accretion/ without .toml: spheres-1000-seed2
 #   Environment:

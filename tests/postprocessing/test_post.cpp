@@ -148,6 +148,21 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   EXPECT_EQ(cell(3, "Z_max"), "1.600");
   EXPECT_TRUE(fs::exists(dir / "study" / "study.txt"));
   EXPECT_TRUE(fs::exists(dir / "study" / "study_fits.csv"));
+  // The seeds' table: one parameter set, the two included runs (at rest, to its end time), whose
+  // window means agree, so no spread.
+  const auto means = read_csv(dir / "study" / "study_means.csv");
+  ASSERT_EQ(means.size(), 2u);
+  const auto mean_cell = [&](const std::string& name) {
+    const auto at = std::find(means[0].begin(), means[0].end(), name);
+    EXPECT_NE(at, means[0].end()) << name;
+    return at == means[0].end() ? std::string() : means[1].at(static_cast<std::size_t>(at - means[0].begin()));
+  };
+  EXPECT_EQ(mean_cell("shape"), "spheres");
+  EXPECT_EQ(mean_cell("grains"), "5");
+  EXPECT_EQ(mean_cell("runs"), "2");
+  EXPECT_EQ(mean_cell("Z_max"), "1.600");
+  EXPECT_EQ(mean_cell("Z_max_spread"), "0");
+  EXPECT_EQ(mean_cell("D_max_over_mean_d"), "5.000");
   EXPECT_TRUE(fs::exists(dir / "study" / "study_kinetic_energy.csv"));
   std::ifstream study_text(dir / "study" / "study.txt");
   const std::string table((std::istreambuf_iterator<char>(study_text)), std::istreambuf_iterator<char>());
