@@ -224,6 +224,7 @@ fs::path write_study_means(const fs::path& out, const std::vector<StudyRun>& stu
                                  std::to_string(seeds.size())};
     for (const auto& [name, value] : quantities) {
       std::vector<double> samples;
+      samples.reserve(seeds.size());
       for (const StudyRun* r : seeds) samples.push_back(value(*r));
       const Spread over_seeds = spread(samples);
       row.push_back(significant(over_seeds.mean));
