@@ -10,18 +10,20 @@
 #   RUN...   which runs to make, in this order (default: all of SET below); names are
 #            SCENE-seedK, SCENE a file of examples/accretion/ without .toml: spheres-1000-seed2
 #   Environment:
-#   SET         "paper" (default): every run of the study, about 5 h of CPU on one thread
-#               (bench/RESULTS.md, "The accretion study's long runs"); "small": 125 spheres and
+#   SET         "paper" (default): every run of the study, about 8 h of CPU on one thread, 3.7 h
+#               of it the μ = 0.4 and 0.8 runs at 3 375 spheres (bench/RESULTS.md, "The
+#               accretion study's long runs", second and third batches); "small": 125 spheres and
 #               125 polyhedra, seed 1 (a few CPU seconds with END_TIME=2400 WINDOW=1800)
 #   END_TIME    s, where every run stops (default 8100: 135 min, ten snapshots in the window)
 #   WINDOW      s, the start of the averaging window (default 7500, the paper's t > 125 min)
 #   FIGURES_DIR when set, the study's PNGs are copied there as accretion-study-*.png (docs/)
 #   POST        0: make the runs only, no study (default 1)
+#   THREADS     OpenMP threads of each run (default 1; the result is the same bits for any count)
 #
-# Each run is `rubble run SCENE --until end_time --end-time END_TIME` with one snapshot a minute
-# and the seed set, one thread (OMP_NUM_THREADS=1: the result does not depend on it). A run whose
-# run.h5 ended (at rest or at its end time) is kept; one that was stopped (a signal, a kill) goes
-# on from its newest checkpoint (`rubble run --resume`, docs/checkpoints.md). Frictional runs are
+# Each run is `rubble run SCENE --until end_time --end-time END_TIME` with one snapshot a minute,
+# the seed set, and THREADS threads (the result does not depend on it). A run whose run.h5 ended
+# (at rest or at its end time) is kept; one that was stopped (a signal, a kill) goes on from its
+# newest checkpoint (`rubble run --resume`, docs/checkpoints.md). Frictional runs are
 # not run `until = "rest"`: they come to rest long before the window and would stop short of it.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -31,6 +33,11 @@ shift $(($# < 2 ? $# : 2))
 end_time=${END_TIME:-8100}
 window=${WINDOW:-7500}
 set_name=${SET:-paper}
+threads=${THREADS:-1}
+if ! [[ "$threads" =~ ^[1-9][0-9]*$ ]]; then
+  echo "study.sh: THREADS: expected a positive integer, got '$threads'" >&2
+  exit 2
+fi
 
 if [ $# -gt 0 ]; then
   runs=("$@")
@@ -73,7 +80,7 @@ for run in "${runs[@]}"; do
     none) ;;
     *)
       echo "$run: $status: going on from its newest checkpoint"
-      OMP_NUM_THREADS=1 "$rubble" run --resume "$dir" --until end_time --end-time "$end_time" -q
+      OMP_NUM_THREADS="$threads" "$rubble" run --resume "$dir" --until end_time --end-time "$end_time" -q
       continue
       ;;
   esac
@@ -81,7 +88,7 @@ for run in "${runs[@]}"; do
   sed -e "s/^seed = .*/seed = $seed/" -e 's/^directory = .*/&\nsnapshot_interval = 60.0/' "$src" > "$out/scenes/$run.toml"
   grep -q "^seed = $seed$" "$out/scenes/$run.toml" || { echo "study.sh: cannot set the seed of $run" >&2; exit 1; }
   echo "$run: running to t = $end_time s ..."
-  OMP_NUM_THREADS=1 "$rubble" run "$out/scenes/$run.toml" --out "$dir" --until end_time --end-time "$end_time" -q
+  OMP_NUM_THREADS="$threads" "$rubble" run "$out/scenes/$run.toml" --out "$dir" --until end_time --end-time "$end_time" -q
 done
 
 [ "${POST:-1}" = 0 ] && exit 0
