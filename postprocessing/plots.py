@@ -207,6 +207,17 @@ def point(study, members, key):
     return mean, (number(spread[members[0]]) if spread else 0.0)
 
 
+def capped_share(study, members):
+    """The largest share, over the runs of a parameter set, of window steps that ended at the
+    solver's sweep cap (study.csv capped_steps / window_steps; 0 where unknown): such a point's
+    values carry the solver's error, and the plot says so beside it."""
+    capped, steps = study.get("capped_steps"), study.get("window_steps")
+    if capped is None or steps is None:
+        return 0.0
+    shares = [number(capped[i]) / number(steps[i]) for i in members if number(steps[i]) > 0]
+    return max((share for share in shares if share > 0.0), default=0.0)
+
+
 MARKERS = {"spheres": "o", "polyhedra": "s", "mixed": "^"}
 
 
@@ -241,6 +252,11 @@ def draw_series(ax, study, groups, group_keys, y_key, style="-", filled=True, su
         if flagged:
             ax.plot([x for x, _ in flagged], [m for _, m in flagged], linestyle="none", marker="o", ms=13,
                     markerfacecolor="none", color=colour)
+        for x, (m, _) in zip(xs, stats):
+            capped = capped_share(study, points[x])
+            if capped > 0.0:
+                ax.annotate(f"sweep cap: {100.0 * capped:.0f} % of steps", (x, m), xytext=(-6, -3),
+                            textcoords="offset points", ha="right", va="top", fontsize=6, color=colour)
         if fits is not None and len(xs) >= 2:
             fit = fits.get((shape, label[1] if len(label) > 1 else 0.0, y_key, "power"))
             if fit:
