@@ -68,7 +68,7 @@ std::string memory_shortfall(std::uint64_t spheres, std::uint64_t polyhedra) {
   const double available = available_memory();
   if (available <= 0.0 || needed <= available) return "";
   return fmt::format(
-      "this scene needs about {:.3g} GB ({} spheres at ~{:.0f} kB and {} polyhedra at ~{:.0f} kB each, "
+      "this scene needs about {:.3g} GB ({} spheres at ~{:.1f} kB and {} polyhedra at ~{:.1f} kB each, "
       "bench/RESULTS.md), more than the {:.3g} GB of memory this process may use (physical memory, cgroup "
       "and ulimit); reduce the grain count",
       needed / 1e9, spheres, bytes_per_sphere / 1024.0, polyhedra, bytes_per_polyhedron / 1024.0, available / 1e9);
