@@ -29,11 +29,14 @@ struct PostArguments {
   double stable_after = 7500.0;
 };
 
-/// The run's gravity and time step, from the scene stored in the run file. A scene this rubble
-/// cannot parse leaves the potential energy at 0 (with a warning) and h to the series.
-void settings_from_scene(const RunReader& reader, PostOptions& options, std::ostream& warnings) {
+/// The run's gravity and time step (and, given `solver`, its sweep cap and tolerance), from the
+/// scene stored in the run file. A scene this rubble cannot parse leaves the potential energy at 0
+/// (with a warning), h to the series and the solver's limits unknown.
+void settings_from_scene(const RunReader& reader, PostOptions& options, std::ostream& warnings,
+                         SolverLimits* solver = nullptr) {
   try {
     const Scene scene = parse_scene(reader.scene_text(), reader.path().string() + ":/scene");
+    if (solver != nullptr) *solver = {scene.run.step.solver.max_iterations, scene.run.step.solver.tolerance};
     const GravitySettings& gravity = scene.run.step.gravity;
     switch (gravity.kind) {
       case GravitySettings::Kind::none:
@@ -62,17 +65,6 @@ void settings_from_scene(const RunReader& reader, PostOptions& options, std::ost
   }
 }
 
-/// The run's sweep cap and tolerance, from the scene stored in the run file; a scene this rubble
-/// cannot parse leaves them unknown (settings_from_scene has warned about it already).
-SolverLimits solver_limits_from_scene(const RunReader& reader) {
-  try {
-    const Scene scene = parse_scene(reader.scene_text(), reader.path().string() + ":/scene");
-    return {scene.run.step.solver.max_iterations, scene.run.step.solver.tolerance};
-  } catch (const std::exception&) {
-    return {};
-  }
-}
-
 PlotOptions plot_options(const PostArguments& args) {
   PlotOptions plot;
   plot.python = args.python;
@@ -90,13 +82,15 @@ int post_command(const PostArguments& args) {
       options.plots = !args.no_plots;
       options.plot = plot_options(args);
       options.include_unfinished = args.include_unfinished;
-      // Each run's own gravity (G, softening) for the escape test of its last snapshot.
-      options.potential_of = [](const RunReader& reader) {
-        PostOptions settings;
-        settings_from_scene(reader, settings, std::cerr);
-        return settings.potential;
+      // Each run's own gravity (G, softening) for the escape test of its last snapshot, and its
+      // solver's limits for the count of capped steps: one parse of its scene.
+      options.settings_of = [](const RunReader& reader) {
+        PostOptions post;
+        StudyRunSettings settings;
+        settings_from_scene(reader, post, std::cerr, &settings.solver);
+        settings.potential = post.potential;
+        return settings;
       };
-      options.solver_limits_of = solver_limits_from_scene;
       options.log = log;
       options.warnings = &std::cerr;
       std::vector<std::filesystem::path> inputs(args.study.begin(), args.study.end());

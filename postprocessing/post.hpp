@@ -76,6 +76,15 @@ struct SolverLimits {
   double tolerance = 0.0;  ///< the sweep residual asked for; 0: not known
 };
 
+/// What a study reads from each run's own scene (parsed once a run).
+struct StudyRunSettings {
+  /// The run's gravity, for the escape test of its last snapshot (AggregateMetrics::escaping_grains).
+  PotentialSettings potential{};
+  /// The run's sweep cap and tolerance, for the window's steps that stopped at the cap (their
+  /// window values carry the solver's error: counted in study.csv and study.txt, and warned about).
+  SolverLimits solver{};
+};
+
 /// What post_process_study does.
 struct StudyOptions {
   std::filesystem::path output_directory;  ///< where study.csv and the PNGs go
@@ -91,13 +100,9 @@ struct StudyOptions {
   /// file) or did not reach the window. They are always listed in study.csv, with
   /// their status and reached_window, and drawn as open markers.
   bool include_unfinished = false;
-  /// The run's gravity, for the escape test of the last snapshot (AggregateMetrics::escaping_grains);
-  /// unset: no gravity, no grain counted as escaping. `rubble post` reads it from the run's scene.
-  std::function<PotentialSettings(const RunReader&)> potential_of;
-  /// The run's solver settings, for the steps of the window that stopped at the sweep cap (their
-  /// window values carry the solver's error: counted in study.csv and study.txt, and warned
-  /// about). Unset: not counted. `rubble post` reads them from the run's scene.
-  std::function<SolverLimits(const RunReader&)> solver_limits_of;
+  /// Each run's settings from its scene; unset: no gravity (no grain counted as escaping) and
+  /// no sweep cap known (no step counted as capped). `rubble post` parses the run's scene.
+  std::function<StudyRunSettings(const RunReader&)> settings_of;
   std::ostream* log = nullptr;       ///< progress (nullptr: silent)
   std::ostream* warnings = nullptr;  ///< as PostOptions::warnings
 };

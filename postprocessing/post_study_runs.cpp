@@ -44,10 +44,9 @@ void describe_grains(const Model& model, StudyRun& r) {
 /// Every snapshot's metrics (grain sizes once per run); the last one also with the run's gravity,
 /// for the escape test (an O(N^2) direct sum, so not at every snapshot).
 std::vector<AggregateMetrics> every_snapshot_metrics(const RunReader& reader, const fs::path& run,
-                                                     const StudyOptions& options) {
+                                                     const PotentialSettings& potential) {
   const Model& model = reader.model();
   const GrainSizes sizes = grain_sizes(model);
-  const PotentialSettings potential = options.potential_of ? options.potential_of(reader) : PotentialSettings{};
   std::vector<AggregateMetrics> all;
   Model in_play;  // a run with [[inflow]]: the bodies in play of the snapshot (the others not inserted yet)
   for (std::size_t k = 0; k < reader.snapshot_count(); ++k) {
@@ -178,11 +177,12 @@ std::optional<StudyRun> reduce_run(const fs::path& run, const StudyOptions& opti
   r.status = reader->status();
   r.at_rest = r.status == "at_rest";
   describe_grains(reader->model(), r);
-  average_window(every_snapshot_metrics(*reader, run, options), options.stable_after, r);
+  const StudyRunSettings settings = options.settings_of ? options.settings_of(*reader) : StudyRunSettings{};
+  r.solver = settings.solver;
+  average_window(every_snapshot_metrics(*reader, run, settings.potential), options.stable_after, r);
   const RunSeries series = reader->read_series();
   check_series(run, series);
   add_energy_curve(series, options.stable_after, r);
-  if (options.solver_limits_of) r.solver = options.solver_limits_of(*reader);
   count_capped_steps(series, options.stable_after, r);
   decide_inclusion(options, r, left_out);
   warn_capped_steps(options, r);

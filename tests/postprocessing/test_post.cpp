@@ -100,7 +100,7 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   study.output_directory = dir / "study";
   study.plots = false;
   study.stable_after = 0.45;  // snapshots at t = 0.5 and 0.6
-  study.solver_limits_of = [](const RunReader&) { return SolverLimits{50, 1e-4}; };
+  study.settings_of = [](const RunReader&) { return StudyRunSettings{{}, SolverLimits{50, 1e-4}}; };
   std::ostringstream study_warnings;
   study.warnings = &study_warnings;
   post_process_study({dir}, study);  // finds the three run.h5, skips post/metrics.h5
@@ -169,7 +169,7 @@ TEST(Post, MetricsOfChosenSnapshotsAndStudy) {
   EXPECT_NE(table.find("  cap%\n"), std::string::npos) << table;
   EXPECT_NE(table.find("    50\n"), std::string::npos) << table;  // 1 of 2 steps: 50 %
   // Without the solver's settings nothing is counted as capped (not "0": unknown).
-  study.solver_limits_of = nullptr;
+  study.settings_of = nullptr;
   post_process_study({dir}, study);
   study_rows = read_csv(dir / "study" / "study.csv");
   EXPECT_EQ(cell(1, "capped_steps"), "");
