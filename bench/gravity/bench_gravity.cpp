@@ -3,12 +3,16 @@
 //   bench_gravity [--n 1000,10000,100000,1000000] [--theta 0.3,0.5,0.7,1.0] [--order 1,2]
 //                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
 //                 [--csv FILE] [--direct-rate] [--leaf-size 16] [--group-size 64]
-//                 [--precision double,single] [--backend cpu,cuda]
+//                 [--precision double,single] [--backend cpu,cuda] [--write-reference DIR]
 //
 // Each tree figure is the best of --reps evaluations (tree build included), as wall-clock seconds
 // and as process CPU seconds (all threads; on a loaded machine the latter measures the work). Errors are the
 // per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
 // (N <= 100000) or over --subset random targets (larger N).
+//
+// --write-reference DIR: for each N, DIR/DIST-N.bin holds the particles, the error targets and the
+// exact direct-sum accelerations on them (layout in write_reference), so that another code's tree
+// can be timed and judged on the same set (bench/gravity/compare_pytreegrav.py).
 //
 // --backend cuda: the tree built and walked on the GPU (--threads sets the host's OpenMP threads,
 // which only check the input); its seconds include the copies ("copies s": the particles to the GPU
@@ -21,6 +25,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
@@ -118,7 +123,7 @@ struct Arguments {
   std::vector<double> ns{1e3, 1e4, 1e5, 1e6}, thetas{0.3, 0.5, 0.7, 1.0}, orders{1, 2}, threads{1, 2};
   int reps = 3, leaf_size = g::GravityOptions{}.leaf_size, group_size = g::GravityOptions{}.group_size;
   std::size_t subset = 1000;
-  std::string dist = "uniform", csv_path;
+  std::string dist = "uniform", csv_path, reference_dir;
   bool direct_rate = false;
   std::vector<g::KernelPrecision> precisions{g::KernelPrecision::double_precision};
   std::vector<g::Backend> backends{g::Backend::cpu};
@@ -156,6 +161,8 @@ Arguments parse_arguments(int argc, char** argv) {
       args.dist = next();
     else if (arg == "--csv")
       args.csv_path = next();
+    else if (arg == "--write-reference")
+      args.reference_dir = next();
     else if (arg == "--direct-rate")
       args.direct_rate = true;
     else if (arg == "--precision")
@@ -171,6 +178,29 @@ Arguments parse_arguments(int argc, char** argv) {
     }
   }
   return args;
+}
+
+/// Writes `path`: the 8 bytes "RUBGRAV1", N and K as little-endian uint64, then in native doubles
+/// (little-endian on x86) the positions (3N, x y z per particle), the masses (N), the K target
+/// indices (as uint64) and the exact accelerations on them (3K, G = 1). Exits with code 1 if the
+/// file cannot be written.
+void write_reference(const std::string& path, const std::vector<double>& pos, const std::vector<double>& mass,
+                     const std::vector<std::size_t>& targets, const std::vector<double>& aref) {
+  std::ofstream out(path, std::ios::binary);
+  const std::uint64_t n = mass.size(), k = targets.size();
+  const std::vector<std::uint64_t> indices(targets.begin(), targets.end());
+  out.write("RUBGRAV1", 8);
+  out.write(reinterpret_cast<const char*>(&n), sizeof n);
+  out.write(reinterpret_cast<const char*>(&k), sizeof k);
+  out.write(reinterpret_cast<const char*>(pos.data()), static_cast<std::streamsize>(pos.size() * sizeof(double)));
+  out.write(reinterpret_cast<const char*>(mass.data()), static_cast<std::streamsize>(mass.size() * sizeof(double)));
+  out.write(reinterpret_cast<const char*>(indices.data()),
+            static_cast<std::streamsize>(indices.size() * sizeof(std::uint64_t)));
+  out.write(reinterpret_cast<const char*>(aref.data()), static_cast<std::streamsize>(aref.size() * sizeof(double)));
+  if (!out) {
+    std::fprintf(stderr, "--write-reference: cannot write %s\n", path.c_str());
+    std::exit(1);
+  }
 }
 
 /// |a[i] - a_ref[k]| / |a_ref[k]| for each target i = targets[k].
@@ -293,6 +323,10 @@ int main(int argc, char** argv) {
     std::vector<double> aref(3 * targets.size());
     omp_set_num_threads(max_threads);
     g::direct_sum_targets(ref, pos, mass, targets, aref, {});
+    if (!args.reference_dir.empty()) {
+      write_reference(args.reference_dir + "/" + args.dist + "-" + std::to_string(n) + ".bin", pos, mass, targets,
+                      aref);
+    }
     for (double order : args.orders)
       for (double theta : args.thetas)
         for (g::KernelPrecision precision : args.precisions)
