@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
   // threshold to the size of every large block freed (its "dynamic mmap threshold"): a run's
   // contact list and solver copy, tens of MB each step, left as much free heap resident. A fixed
   // 1 MiB threshold returns it as it is freed: the peak resident memory of 1e5 settling spheres
-  // falls by a fifth, for ~1 % more CPU in page faults (bench/RESULTS.md, "Memory per grain").
+  // falls by a fifth, for ~2 % more CPU in page faults (bench/RESULTS.md, "Memory per grain").
   // Results do not depend on it.
   mallopt(M_TRIM_THRESHOLD, 1 << 20);
 #endif

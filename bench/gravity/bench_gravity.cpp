@@ -180,10 +180,10 @@ Arguments parse_arguments(int argc, char** argv) {
   return args;
 }
 
-/// Writes `path`: the 8 bytes "RUBGRAV1", N and K as little-endian uint64, then in native doubles
-/// (little-endian on x86) the positions (3N, x y z per particle), the masses (N), the K target
-/// indices (as uint64) and the exact accelerations on them (3K, G = 1). Exits with code 1 if the
-/// file cannot be written.
+/// Writes `path`: the 8 bytes "RUBGRAV1", then N and K as uint64, the positions (3N doubles, x y z
+/// per particle), the masses (N), the K target indices (uint64) and the exact accelerations on them
+/// (3K, G = 1), all in the machine's byte order (little-endian on x86-64, which the comparison
+/// script assumes). Exits with code 1 if the file cannot be written.
 void write_reference(const std::string& path, const std::vector<double>& pos, const std::vector<double>& mass,
                      const std::vector<std::size_t>& targets, const std::vector<double>& aref) {
   std::ofstream out(path, std::ios::binary);

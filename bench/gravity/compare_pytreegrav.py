@@ -4,7 +4,7 @@
 For each distribution and N, `bench_gravity` (this folder) times rubble's tree over a grid of
 opening angles, both expansion orders and both kernel precisions, and writes the particles, the
 error targets and their exact direct-sum accelerations (--write-reference). This script then
-times pytreegrav (Grudić & Hopkins; a Python/numba Barnes-Hut code, `Accel(..., method="tree",
+times pytreegrav (Grudić & Gurvich 2021; a Python/numba Barnes-Hut code, `Accel(..., method="tree",
 parallel=False)`) on that file, judges its accelerations on the same targets with the same
 measure (per-particle |a - a_exact| / |a_exact|, median and 99th percentile), and pairs each
 pytreegrav row with the cheapest rubble row that is as accurate, in three ways: median error no
