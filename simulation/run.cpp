@@ -437,7 +437,9 @@ StepReport RunSession::take_step() {
   // space it leaves behind is never trimmed (glibc's trim threshold has grown with it) and stayed
   // resident: 50 MB, a fifth of the peak at 1e5 spheres (bench/RESULTS.md, "Memory per grain").
   // The step's temporaries take their pages back once after each trim, so it costs nothing
-  // measurable; results do not depend on it.
+  // measurable; results do not depend on it. The `rubble` executable also fixes the trim threshold
+  // (apps/main.cpp), which returns the heap's top as it is freed; this trim is what a host that
+  // keeps glibc's defaults (the Python module) gets, and it also frees pages inside the heap.
   if (state_.step % 64 == 0) malloc_trim(0);
 #endif
   if (!problem) problem = check_state(model_, state_, h_, control_.max_speed);
