@@ -19,7 +19,7 @@ cases=("$@")
 rubble=$build/apps/rubble
 out=${OUT:-$(mktemp -d)}
 threads=${OMP_NUM_THREADS:-1}
-echo "machine: $(nproc) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u); OMP_NUM_THREADS=$threads"
+echo "machine: $(nproc --all) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u); OMP_NUM_THREADS=$threads"
 for name in "${cases[@]}"; do
   scene=$root/examples/accretion/$name.toml
   load_before=$(uptime | sed 's/.*load average: //')

@@ -37,7 +37,7 @@ work=${WORK:-/tmp/rubble-mixed-bench}
 py=/usr/bin/python3
 dt=1e-4
 mkdir -p "$work"
-echo "machine: $(nproc) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u '+%F %H:%M UTC')"
+echo "machine: $(nproc --all) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u '+%F %H:%M UTC')"
 
 # (a) the pour, once
 if [ ! -f "$work/pour.summary" ]; then

@@ -7,7 +7,7 @@ root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build/release}
 rubble=$build/apps/rubble
 out=$(mktemp -d)
-echo "machine: $(nproc) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u +%F)"
+echo "machine: $(nproc --all) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u +%F)"
 for threads in 1 2; do
   OMP_NUM_THREADS=$threads "$rubble" run "$root/examples/box-deposit.toml" --out "$out/default-$threads" -q > /dev/null
   OMP_NUM_THREADS=$threads "$rubble" run "$root/bench/engine/box-deposit-10000.toml" --out "$out/deposit10k-$threads" -q > /dev/null

@@ -12,7 +12,7 @@ STEPS="${STEPS:-400}"
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$BUILD" --target every_k -j2 >/dev/null
 OUT="$ROOT/bench/gravity"
-echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc) cores; $(date -u); load: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc --all) cores; $(date -u); load: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "# scene: examples/accretion-1000.toml, $STEPS steps (dt auto = 1.4 s), OMP_NUM_THREADS=1"
 OMP_NUM_THREADS=1 /usr/bin/time -f "# CPU: %U s user + %S s sys, peak RSS %M kB" \
   "$BUILD/bench/gravity/every_k" "$ROOT/examples/accretion-1000.toml" --steps "$STEPS" --k 1,2,4,8,16 \

@@ -11,7 +11,7 @@ if [ -z "${BENCH_BIN:-}" ]; then
   BENCH_BIN="$BUILD/bench/gravity/bench_gravity"
 fi
 OUT="$ROOT/bench/gravity"
-echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc) cores; $(date); load: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc --all) cores; $(date); load: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo
 echo "## direct sum (best of 3)"
 "$BENCH_BIN" --direct-rate --n 10000,30000 --threads 1,2 --reps 3

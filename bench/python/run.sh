@@ -5,6 +5,6 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build/ci}
-echo "machine: $(nproc) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u); load before: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "machine: $(nproc --all) cores, $(lscpu | sed -n 's/^Model name: *//p'); date: $(date -u); load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 OMP_NUM_THREADS=1 PYTHONPATH="$build/python" /usr/bin/python3 "$root/bench/python/step_loop.py" \
   "$build/apps/rubble" "${2:-1000}" "${3:-3}"

@@ -16,7 +16,7 @@ if [ -z "${BENCH_BIN:-}" ]; then
 fi
 FILES=("$FCLIB/Capsules-i125-1213.hdf5" "$FCLIB/fclib_local_problem_test_BoxesStack.hdf5"
        "$FCLIB/Box_Stacks-i0122-82-5_local.hdf5" "$FCLIB/Spheres-i099-356-679_local.hdf5")
-echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc) cores; $(date); load: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# machine: $(lscpu | grep 'Model name' | sed 's/ \+/ /g'), $(nproc --all) cores; $(date); load: $(cut -d' ' -f1-3 /proc/loadavg)"
 for method in "none" "none --omega 1.6" "newton"; do
   # shellcheck disable=SC2086
   "$BENCH_BIN" "${FILES[@]}" --tolerances 1e-4,1e-8 --max-iterations 100000 --reps 3 --polish $method
