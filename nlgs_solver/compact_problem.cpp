@@ -85,6 +85,8 @@ CompactProblem gather_compact_problem(const Model& model, const State& state, co
   const std::vector<std::uint32_t> local = number_bodies(model, plan, contacts, out);
   out.bodies.resize(out.body_id.size());
   out.points.resize(plan.order.size());
+  out.drift.resize(out.body_id.size());
+  out.watch.resize(plan.order.size());
   const auto bodies = static_cast<std::ptrdiff_t>(out.body_id.size());
   const auto n = static_cast<std::ptrdiff_t>(plan.order.size());
 #pragma omp parallel if (parallel)

@@ -52,6 +52,23 @@ struct CompactProblem {
     double radius;       ///< r_eff, m: turns the block's residual into velocity units
     Vec3 impulse;        ///< (twist about n, roll about t, roll about s), N m s; last step's at the start (warm start)
   };
+  /// How far a body's contact-point velocities may have moved during the solve: the sums of the
+  /// 1-norms of every linear and angular velocity change applied to it (nlgs_solver/README.md,
+  /// "Open contacts skipped"). Walls stay at zero.
+  struct Drift {
+    double linear = 0.0;   ///< sum of ||delta v||_1, m/s
+    double angular = 0.0;  ///< sum of ||delta omega||_1, rad/s
+  };
+  /// What a sweep last saw of a point that it left open (r = 0, u_n > 0): while the bodies'
+  /// drift since then stays below `slack`, u_n is still positive, the local solver would return
+  /// r = 0 again and the point's residual is 0, so the sweep may pass it by. Floats rounded
+  /// towards the safe side (slack and snapshot down, arms up): 16 bytes a point.
+  struct OpenWatch {
+    float slack = -std::numeric_limits<float>::infinity();  ///< u_n then, less its rounding error; -inf: not watched
+    float snapshot = 0.0F;                                  ///< the point's drift bound then (drift_bound)
+    float arm_a = 0.0F;                                     ///< ||arm_a||_2, m
+    float arm_b = 0.0F;                                     ///< ||arm_b||_2, m
+  };
   /// rotation_of_point's value for a point without a rotation block.
   static constexpr std::uint32_t no_rotation = std::numeric_limits<std::uint32_t>::max();
   std::vector<Point> points;                     ///< in the plan's order
@@ -63,6 +80,8 @@ struct CompactProblem {
   /// tangential_restitution; u_t- the contact point's tangential velocity at t_n), m/s; empty when
   /// no law of the scene has e_t > 0. Kept out of Point so that plain scenes' sweeps read no more.
   std::vector<Vec2> tangential_target;
+  std::vector<Drift> drift;      ///< per body (same index as `bodies`)
+  std::vector<OpenWatch> watch;  ///< per point
 
   /// Number of contact points.
   std::size_t size() const { return points.size(); }
@@ -100,19 +119,80 @@ struct CompactProblem {
 
   /// Applies the change `delta` of point k's impulse to its two bodies (v += M^-1 H delta).
   /// Walls are never written: contacts of concurrent sweep groups may share a wall.
+  /// Each change is added to the bodies' drift (the 1-norms of the velocity changes).
   void apply_impulse_change(std::size_t k, const Vec3& delta) {
     const Point& c = points[k];
     const Vec3 p = c.frame * delta;  // world impulse on b; -p on a
     Body& b = bodies[c.b];
     Body& a = bodies[c.a];
     if (b.inverse_mass != 0.0) {  // Model::is_fixed
-      b.linear += b.inverse_mass * p;
-      b.angular += b.inverse_inertia * c.arm_b.cross(p);
+      const Vec3 linear = b.inverse_mass * p;
+      const Vec3 angular = b.inverse_inertia * c.arm_b.cross(p);
+      b.linear += linear;
+      b.angular += angular;
+      add_drift(c.b, linear, angular);
     }
     if (a.inverse_mass != 0.0) {
-      a.linear -= a.inverse_mass * p;
-      a.angular -= a.inverse_inertia * c.arm_a.cross(p);
+      const Vec3 linear = a.inverse_mass * p;
+      const Vec3 angular = a.inverse_inertia * c.arm_a.cross(p);
+      a.linear -= linear;
+      a.angular -= angular;
+      add_drift(c.a, linear, angular);
     }
+  }
+
+  /// Adds a velocity change of body j to its drift.
+  void add_drift(std::uint32_t j, const Vec3& linear, const Vec3& angular) {
+    drift[j].linear += linear.lpNorm<1>();
+    drift[j].angular += angular.lpNorm<1>();
+  }
+
+  /// The bound on how much point k's normal velocity can have changed since the bodies' drift was
+  /// zero: |n . (dv_b + dw_b x arm_b - dv_a - dw_a x arm_a)| <= the drifts, weighted by the arms.
+  double drift_bound(std::size_t k, const OpenWatch& w) const {
+    const Point& c = points[k];
+    return drift[c.a].linear + static_cast<double>(w.arm_a) * drift[c.a].angular + drift[c.b].linear +
+           static_cast<double>(w.arm_b) * drift[c.b].angular;
+  }
+
+  /// Whether point k is still open for sure since a sweep left it open (OpenWatch): its normal
+  /// velocity then, less every change the bodies' velocities have had since, is positive. The
+  /// margin covers the rounding of the drift sums themselves.
+  bool stays_open(std::size_t k) const {
+    const OpenWatch& w = watch[k];
+    if (!(w.slack > 0.0F)) return false;
+    const double bound = drift_bound(k, w);
+    return static_cast<double>(w.slack) > bound - static_cast<double>(w.snapshot) + 1e-12 * bound;
+  }
+
+  /// After a sweep's visit of point k (u its local velocity before the update, free_velocity =
+  /// u - W_kk r_old the one without its impulse, which it has after an update to r = 0; next its
+  /// impulse after): watch it if it was left open, else stop watching it.
+  void note_visit(std::size_t k, const Vec3& u, const Vec3& free_velocity, const Vec3& next) {
+    OpenWatch& w = watch[k];
+    if (next != Vec3::Zero() || !(free_velocity.x() > 0.0)) {
+      w.slack = -std::numeric_limits<float>::infinity();
+      return;
+    }
+    const Point& c = points[k];
+    const Body& a = bodies[c.a];
+    const Body& b = bodies[c.b];
+    const double arm_a = c.arm_a.norm(), arm_b = c.arm_b.norm();
+    // The normal velocity after the update is free_velocity.x() up to rounding errors of terms of
+    // these sizes (the velocities, the target, u and W r): far below 1e-12 of them.
+    const double size = a.linear.lpNorm<1>() + a.angular.lpNorm<1>() * arm_a + b.linear.lpNorm<1>() +
+                        b.angular.lpNorm<1>() * arm_b + std::abs(c.normal_velocity_target) + u.lpNorm<1>() +
+                        free_velocity.lpNorm<1>();
+    w.arm_a = std::nextafter(static_cast<float>(arm_a), std::numeric_limits<float>::infinity());
+    w.arm_b = std::nextafter(static_cast<float>(arm_b), std::numeric_limits<float>::infinity());
+    w.slack =
+        std::nextafter(static_cast<float>(free_velocity.x() - 1e-12 * size), -std::numeric_limits<float>::infinity());
+    w.snapshot = std::nextafter(static_cast<float>(drift_bound(k, w)), -std::numeric_limits<float>::infinity());
+  }
+
+  /// Stops watching every point: after the impulses changed outside the sweeps (the polish).
+  void forget_open_points() {
+    for (OpenWatch& w : watch) w.slack = -std::numeric_limits<float>::infinity();
   }
 
   /// The angular impulse m of point k's rotation block that the law allows for the current
@@ -168,8 +248,16 @@ struct CompactProblem {
     const Point& c = points[k];
     Body& b = bodies[c.b];
     Body& a = bodies[c.a];
-    if (b.inverse_mass != 0.0) b.angular += b.inverse_inertia * change;
-    if (a.inverse_mass != 0.0) a.angular -= a.inverse_inertia * change;
+    if (b.inverse_mass != 0.0) {
+      const Vec3 angular = b.inverse_inertia * change;
+      b.angular += angular;
+      add_drift(c.b, Vec3::Zero(), angular);
+    }
+    if (a.inverse_mass != 0.0) {
+      const Vec3 angular = a.inverse_inertia * change;
+      a.angular -= angular;
+      add_drift(c.a, Vec3::Zero(), angular);
+    }
   }
 };
 

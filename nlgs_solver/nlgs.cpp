@@ -98,6 +98,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
     const auto sweep_start = Clock::now();
     const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
                                     : planned_sweep(extended, plan, positions, options.relaxation, parallel, groups);
+    stats.passed_by += sweep.passed_by;
     if (parallel) {
       double work = 0.0;
       for (const double t : groups.seconds) work += t;
@@ -117,6 +118,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
               ? options.tolerance * std::sqrt((scale.closing_squared + sweep.impulse_squared) / scale.all_squared)
               : options.tolerance;
       const PolishOutcome polished = polish_compact_problem(compact, plan.order, options.polish_iterations, tolerance);
+      compact.forget_open_points();  // the polish may have loaded points the sweeps left open
       stats.newton_iterations += polished.newton_steps;
       if (polished.converged) {
         stats.converged = true;

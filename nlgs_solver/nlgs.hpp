@@ -61,6 +61,9 @@ struct SolverStats {
   int polish_attempts = 0;          ///< Newton polishes started (see SolverOptions::polish_after)
   int newton_iterations = 0;        ///< Newton steps taken by those polishes
   std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
+  /// Visits of open points the sweeps passed by, summed over the sweeps (nlgs_solver/README.md,
+  /// "Open contacts skipped"): each would have left the point open and changed nothing.
+  std::size_t passed_by = 0;
 };
 
 /// The fixed order in which every sweep of one step visits the contacts, and which parts of it may

@@ -12,6 +12,7 @@
 //   void resist_rotation(std::size_t k, SweepResult& sums);  the contact's rolling and twisting
 //                                                            block, solved right after its force
 #include <cmath>
+#include <cstddef>
 #include <span>
 
 #include "nlgs_solver/coulomb.hpp"
@@ -23,6 +24,7 @@ namespace rubble {
 struct SweepResult {
   double residual_squared = 0.0;  ///< sum over contacts of ||F_k||^2 (natural map, velocity units)
   double impulse_squared = 0.0;   ///< sum over contacts of ||W_nn,k r_k||^2 after the update (velocity units)
+  std::size_t passed_by = 0;      ///< open points not visited (CompactProblem::stays_open)
 };
 
 /// Sweeps the contacts in `order`: each local problem is solved exactly with the others frozen
@@ -32,6 +34,14 @@ template <class Problem>
 SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, double relaxation) {
   SweepResult result;
   for (const std::size_t k : order) {
+    // A point left open whose bodies have not moved enough to close it: its visit would return
+    // r = 0 again and add 0 to both sums (CompactProblem::stays_open).
+    if constexpr (requires { problem.stays_open(k); }) {
+      if (problem.stays_open(k)) {
+        ++result.passed_by;
+        continue;
+      }
+    }
     const Mat3& W = problem.delassus(k);
     const double mu = problem.friction_coefficient(k);
     Vec3& r = problem.impulse(k);
@@ -45,6 +55,9 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     r = next;
     result.impulse_squared += (W(0, 0) * next).squaredNorm();
     problem.apply_impulse_change(k, delta);
+    if constexpr (requires { problem.note_visit(k, u, free_velocity, next); }) {
+      problem.note_visit(k, u, free_velocity, next);
+    }
     if constexpr (requires { problem.resist_rotation(k, result); }) problem.resist_rotation(k, result);
   }
   return result;

@@ -82,6 +82,7 @@ SweepResult planned_sweep(Problem& problem, const SweepPlan& plan, std::span<con
   for (const SweepResult& r : groups.result) {
     sum.residual_squared += r.residual_squared;
     sum.impulse_squared += r.impulse_squared;
+    sum.passed_by += r.passed_by;
   }
   return sum;
 }

@@ -33,6 +33,20 @@ TEST(CoulombCone, ProjectionIsIdempotentAndOnTheCone) {
   }
 }
 
+// mu = 0: the cone is the half-line x_T = 0, x_n >= 0, so the projection of (x_n, 0, 0) is
+// (max(x_n, 0), 0, 0), and an open frictionless contact has a zero natural map even when its
+// tangential velocity is exactly zero (a head-on approach): F = r - P(r - u) = 0 for r = 0, u_n > 0.
+TEST(CoulombCone, FrictionlessConeIsTheNonNegativeNormalHalfLine) {
+  EXPECT_EQ(project_onto_coulomb_cone(Vec3(-1.0, 0.0, 0.0), 0.0), Vec3::Zero());
+  EXPECT_EQ(project_onto_coulomb_cone(Vec3(2.0, 0.0, 0.0), 0.0), Vec3(2.0, 0.0, 0.0));
+  EXPECT_EQ(project_onto_coulomb_cone(Vec3(2.0, 1.0, -3.0), 0.0), Vec3(2.0, 0.0, 0.0));
+  EXPECT_EQ(project_onto_coulomb_cone(Vec3(-2.0, 1.0, -3.0), 0.0), Vec3::Zero());
+  EXPECT_EQ(natural_map(Vec3::Zero(), Vec3(0.5, 0.0, 0.0), 0.0, 3.0), Vec3::Zero());
+  EXPECT_EQ(natural_map(Vec3::Zero(), Vec3(0.5, 0.2, 0.0), 0.0, 3.0), Vec3::Zero());
+  // A loaded contact still has the natural map of its normal velocity.
+  EXPECT_DOUBLE_EQ(natural_map(Vec3(1.0, 0.0, 0.0), Vec3(0.5, 0.0, 0.0), 0.0, 3.0).x(), 0.5);
+}
+
 TEST(LocalSolver, OpenWhenTheFreeVelocitySeparates) {
   const LocalSolution s = solve_local_contact(Mat3::Identity(), Vec3(0.1, 3.0, -2.0), 0.5);
   EXPECT_EQ(s.impulse, Vec3::Zero());

@@ -267,6 +267,9 @@ TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
       BodyVelocities velocity = free;
       const SolverStats stats = solve_contacts(s.model, s.state, options, contacts, velocity);
       EXPECT_EQ(stats.iterations, options.max_iterations);
+      // The box has open points within the alert distance, which the sweeps pass by once a visit
+      // has left them open (CompactProblem::stays_open); the reference visits every one.
+      EXPECT_GT(stats.passed_by, prepared.size());
       EXPECT_TRUE(same_bits(velocity.linear, reference_velocity.linear))
           << blocks << " blocks, " << threads << " threads";
       EXPECT_TRUE(same_bits(velocity.angular, reference_velocity.angular))
