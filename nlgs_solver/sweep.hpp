@@ -11,6 +11,10 @@
 // and optionally
 //   void resist_rotation(std::size_t k, SweepResult& sums);  the contact's rolling and twisting
 //                                                            block, solved right after its force
+//   bool stays_open(std::size_t k) const;  and
+//   void note_visit(std::size_t k, const Vec3& u, const Vec3& free_velocity, const Vec3& next);
+//       skip points left open that cannot have closed (CompactProblem; nlgs_solver/README.md,
+//       "Open contacts skipped")
 #include <cmath>
 #include <cstddef>
 #include <span>
