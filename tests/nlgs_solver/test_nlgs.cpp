@@ -13,8 +13,10 @@
 #include <span>
 #include <stdexcept>
 
+#include "nlgs_solver/compact_problem.hpp"
 #include "nlgs_solver/nlgs.hpp"
 #include "nlgs_solver/sweep.hpp"
+#include "nlgs_solver/sweep_plan.hpp"
 
 #include "support/test_scene.hpp"
 
@@ -283,6 +285,40 @@ TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
     }
   }
   omp_set_num_threads(previous);
+}
+
+// The bound behind the skipped visits (CompactProblem::stays_open), checked directly: after every
+// sweep, each point the sweeps would pass by has r = 0 and a positive normal velocity, as a visit
+// would find; and some points are passed by.
+TEST(SweepPlan, PointsPassedByAreOpenAfterEverySweep) {
+  TestScene s = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
+  s.steps(2);
+  ContactList prepared = s.workspace.carry.contacts;
+  const double h = s.options.integrator.time_step;
+  BodyVelocities free{s.state.velocity, s.state.angular_velocity};
+  for (std::size_t b = 0; b < s.model.body_count(); ++b) {
+    if (!s.model.is_fixed(b)) free.linear[b] += h * s.options.gravity.acceleration;
+  }
+  SolverOptions options;
+  prepare_contacts(s.model, s.state, free, s.options.integrator, options, prepared);
+  for (Contact& c : prepared) c.impulse = Vec3::Zero();
+  const SweepPlan plan = plan_sweep(s.model, s.state, prepared, options.block_count);
+  CompactProblem compact = gather_compact_problem(s.model, s.state, plan, prepared, free, false);
+  std::vector<std::size_t> positions(compact.size());
+  for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
+  GroupSweeps groups;
+  std::size_t passed_by = 0, checked = 0;
+  for (int sweep = 0; sweep < 25; ++sweep) {
+    passed_by += planned_sweep(compact, plan, positions, 1.0, false, groups).passed_by;
+    for (std::size_t p = 0; p < compact.size(); ++p) {
+      if (!compact.stays_open(p)) continue;
+      ++checked;
+      ASSERT_EQ(compact.points[p].impulse, Vec3::Zero()) << "point " << p << " after sweep " << sweep;
+      ASSERT_GT(compact.local_velocity(p).x(), 0.0) << "point " << p << " after sweep " << sweep;
+    }
+  }
+  EXPECT_GT(passed_by, compact.size());
+  EXPECT_GT(checked, compact.size());
 }
 
 TEST(SweepPlan, RunsAreIdenticalOnOneAndTwoThreads) {
