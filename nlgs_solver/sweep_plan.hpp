@@ -2,6 +2,9 @@
 // How a step's sweeps walk the plan (nlgs_solver/README.md, "Sweep order and threads"): the
 // plan itself (SweepPlan, plan_sweep) is declared in nlgs.hpp and made in sweep_plan.cpp; this
 // header holds the order in which its groups are visited, serially or by several threads.
+#include <omp.h>
+
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -26,8 +29,13 @@ namespace rubble {
 /// the same data as in the serial order: the result does not depend on the thread count.
 /// (A barrier per phase instead costs 5 synchronisations per sweep; on a loaded machine each is a
 /// scheduler time slice.)
+///
+/// `leaf_work` (optional, one entry per leaf group and its size only then used): the work each
+/// leaf took last time; the contiguous runs are then cut at equal shares of it instead of equal
+/// numbers of leaves (after open points are skipped the leaves' work is uneven). Which thread
+/// visits a group never changes what the visit computes, so this cannot change a result.
 template <class Visit>
-void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit) {
+void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit, std::span<const double> leaf_work = {}) {
   const std::size_t groups = plan.group_start.size() - 1;
   if (!parallel) {
     for (std::size_t g = 0; g < groups; ++g) visit(g);
@@ -35,12 +43,31 @@ void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit) {
   }
   std::vector<std::atomic<int>> arrivals(groups);
   for (auto& count : arrivals) count.store(0, std::memory_order_relaxed);
-  const auto leaves = static_cast<std::ptrdiff_t>(plan.phase_start[1]);
+  const auto leaves = static_cast<std::size_t>(plan.phase_start[1]);
+  double total = 0.0;
+  if (leaf_work.size() == leaves) {
+    for (const double w : leaf_work) total += w;
+  }
 #pragma omp parallel
   {
-#pragma omp for schedule(static) nowait
-    for (std::ptrdiff_t leaf = 0; leaf < leaves; ++leaf) {
-      std::size_t g = static_cast<std::size_t>(leaf);
+    // This thread's run of leaves: the leaves whose work midpoint falls in its share (equal
+    // counts, as a static schedule, without the work).
+    const int thread = omp_get_thread_num();
+    const int threads = omp_get_num_threads();
+    std::size_t first = leaves, last = leaves;
+    double before = 0.0;
+    for (std::size_t leaf = 0; leaf < leaves; ++leaf) {
+      const double share = total > 0.0 ? (before + 0.5 * leaf_work[leaf]) / total
+                                       : (static_cast<double>(leaf) + 0.5) / static_cast<double>(leaves);
+      if (total > 0.0) before += leaf_work[leaf];
+      // Shares grow with the leaf, so each thread's leaves are contiguous; every leaf has an owner.
+      const int owner = std::clamp(static_cast<int>(share * threads), 0, threads - 1);
+      const bool mine = owner == thread;
+      if (mine && first == leaves) first = leaf;
+      if (mine) last = leaf + 1;
+    }
+    for (std::size_t leaf = first; leaf < last; ++leaf) {
+      std::size_t g = leaf;
       visit(g);
       // Climb while this thread completed the second child of the parent.
       while (plan.parent_group[g] < groups) {
@@ -56,6 +83,7 @@ void visit_groups(const SweepPlan& plan, bool parallel, const Visit& visit) {
 struct GroupSweeps {
   std::vector<SweepResult> result;  ///< each group's sums of the last sweep
   std::vector<double> seconds;      ///< each group's own sweep time (threaded sweeps only)
+  std::vector<double> leaf_work;    ///< the leaves' times of the sweep before (visit_groups' shares)
 };
 
 /// One sweep of a problem whose point p is position p of the plan's order, group by group
@@ -69,15 +97,25 @@ SweepResult planned_sweep(Problem& problem, const SweepPlan& plan, std::span<con
   using Clock = std::chrono::steady_clock;
   const std::size_t count = plan.group_start.size() - 1;
   groups.result.assign(count, SweepResult{});
+  const auto leaves = static_cast<std::size_t>(plan.phase_start[1]);
+  // Last sweep's leaf times (none before the first threaded sweep of the step).
+  if (parallel && groups.seconds.size() == count) {
+    groups.leaf_work.assign(groups.seconds.begin(), groups.seconds.begin() + static_cast<std::ptrdiff_t>(leaves));
+  } else {
+    groups.leaf_work.clear();
+  }
   if (parallel) groups.seconds.assign(count, 0.0);
-  visit_groups(plan, parallel, [&](std::size_t g) {
-    const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
-    if (first == last) return;
-    const auto begin = Clock::now();
-    const std::span<const std::size_t> part(positions.data() + first, last - first);
-    groups.result[g] = nlgs_sweep(problem, part, relaxation);
-    if (parallel) groups.seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
-  });
+  visit_groups(
+      plan, parallel,
+      [&](std::size_t g) {
+        const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
+        if (first == last) return;
+        const auto begin = Clock::now();
+        const std::span<const std::size_t> part(positions.data() + first, last - first);
+        groups.result[g] = nlgs_sweep(problem, part, relaxation);
+        if (parallel) groups.seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
+      },
+      groups.leaf_work);
   SweepResult sum;
   for (const SweepResult& r : groups.result) {
     sum.residual_squared += r.residual_squared;
