@@ -231,16 +231,34 @@ bool same_bits(const std::vector<Vec3>& x, const std::vector<Vec3>& y) {
   return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(Vec3)) == 0;
 }
 
-TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
-  TestScene s = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
-  s.steps(2);
-  // This step's problem: the contacts at the current state, prepared from a free velocity.
-  ContactList prepared = s.workspace.carry.contacts;
-  const double h = s.options.integrator.time_step;
+/// The free velocities of the scene's next step: the state's, plus one step of gravity.
+BodyVelocities free_velocities(const TestScene& s) {
   BodyVelocities free{s.state.velocity, s.state.angular_velocity};
   for (std::size_t b = 0; b < s.model.body_count(); ++b) {
-    if (!s.model.is_fixed(b)) free.linear[b] += h * s.options.gravity.acceleration;
+    if (!s.model.is_fixed(b)) free.linear[b] += s.options.integrator.time_step * s.options.gravity.acceleration;
   }
+  return free;
+}
+
+/// The frictional box after two steps, with the contacts of its third step (not yet prepared) and
+/// that step's free velocities.
+struct BoxStep {
+  TestScene scene = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
+  ContactList contacts;
+  BodyVelocities free;
+  BoxStep() {
+    scene.steps(2);
+    contacts = scene.workspace.carry.contacts;
+    free = free_velocities(scene);
+  }
+};
+
+TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
+  // This step's problem: the contacts at the current state, prepared from a free velocity.
+  BoxStep box;
+  const TestScene& s = box.scene;
+  ContactList& prepared = box.contacts;
+  const BodyVelocities& free = box.free;
   SolverOptions options;
   options.warm_start = false;  // impulses start at zero in both
   options.polish_after = 0;
@@ -291,19 +309,13 @@ TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
 // sweep, each point the sweeps would pass by has r = 0 and a positive normal velocity, as a visit
 // would find; and some points are passed by.
 TEST(SweepPlan, PointsPassedByAreOpenAfterEverySweep) {
-  TestScene s = packed_box(0.5, Vec3(0.05, -0.03, 0.02));
-  s.steps(2);
-  ContactList prepared = s.workspace.carry.contacts;
-  const double h = s.options.integrator.time_step;
-  BodyVelocities free{s.state.velocity, s.state.angular_velocity};
-  for (std::size_t b = 0; b < s.model.body_count(); ++b) {
-    if (!s.model.is_fixed(b)) free.linear[b] += h * s.options.gravity.acceleration;
-  }
-  SolverOptions options;
-  prepare_contacts(s.model, s.state, free, s.options.integrator, options, prepared);
-  for (Contact& c : prepared) c.impulse = Vec3::Zero();
-  const SweepPlan plan = plan_sweep(s.model, s.state, prepared, options.block_count);
-  CompactProblem compact = gather_compact_problem(s.model, s.state, plan, prepared, free, false);
+  BoxStep box;
+  const SolverOptions defaults;
+  prepare_contacts(box.scene.model, box.scene.state, box.free, box.scene.options.integrator, defaults, box.contacts);
+  for (Contact& c : box.contacts) c.impulse = Vec3::Zero();
+  const SweepPlan plan = plan_sweep(box.scene.model, box.scene.state, box.contacts, defaults.block_count);
+  CompactProblem compact =
+      gather_compact_problem(box.scene.model, box.scene.state, plan, box.contacts, box.free, false);
   std::vector<std::size_t> positions(compact.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   GroupSweeps groups;
