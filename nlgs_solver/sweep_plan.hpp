@@ -98,7 +98,8 @@ SweepResult planned_sweep(Problem& problem, const SweepPlan& plan, std::span<con
   const std::size_t count = plan.group_start.size() - 1;
   groups.result.assign(count, SweepResult{});
   const auto leaves = static_cast<std::size_t>(plan.phase_start[1]);
-  // Last sweep's leaf times (none before the first threaded sweep of the step).
+  // Last sweep's leaf times (none before the first threaded sweep of the step), copied: the
+  // threads overwrite `seconds` while the others are still reading the shares.
   if (parallel && groups.seconds.size() == count) {
     groups.leaf_work.assign(groups.seconds.begin(), groups.seconds.begin() + static_cast<std::ptrdiff_t>(leaves));
   } else {
