@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "contact_detection/narrow_phase_spheres.hpp"
+#include "support/rotation.hpp"
 
 namespace rubble {
 namespace {
@@ -39,7 +40,7 @@ TEST(PlaneSphere, SignedGapAlongTheRotatedNormal) {
   add_sphere(s.model, 0.2, 0);
   s.finish();
   s.state.position[0] = Vec3(0, 0, 1);
-  s.state.orientation[0] = Quat::FromTwoVectors(Vec3::UnitZ(), Vec3(0, 1, 1).normalized());
+  s.state.orientation[0] = rubble::testing::rotation_between(Vec3::UnitZ(), Vec3(0, 1, 1).normalized());
   s.state.position[1] = Vec3(5, 0, 1.1);  // 0.1/sqrt(2) above the plane along its normal
   ContactList contacts;
   collide_plane_sphere(s.model, s.state, 0, 1, 1.0, contacts);

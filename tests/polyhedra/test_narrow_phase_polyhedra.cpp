@@ -10,6 +10,7 @@
 #include <random>
 
 #include "core/polyhedron.hpp"
+#include "support/rotation.hpp"
 
 namespace rubble {
 namespace {
@@ -129,7 +130,7 @@ TEST(PolyhedronContacts, EdgeFaceGivesTwoPoints) {
 TEST(PolyhedronContacts, VertexFaceGivesOnePoint) {
   Scene s;
   const auto a = s.cube(2.0, Vec3::Zero());
-  const Quat corner_down = Quat::FromTwoVectors(Vec3(-1, -1, -1).normalized(), -Vec3::UnitZ());
+  const Quat corner_down = rubble::testing::rotation_between(Vec3(-1, -1, -1).normalized(), -Vec3::UnitZ());
   const double half_diagonal = std::sqrt(3.0) / 2.0;
   const auto b = s.cube(1.0, Vec3(0.1, 0.2, 1.0 + half_diagonal + 0.004), corner_down);
   const ContactList contacts = s.polyhedra(a, b);

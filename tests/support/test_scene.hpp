@@ -7,6 +7,7 @@
 #include "core/model.hpp"
 #include "core/state.hpp"
 #include "simulation/step.hpp"
+#include "support/rotation.hpp"
 
 namespace rubble::testing {
 
@@ -47,7 +48,7 @@ struct TestScene {
   /// A fixed plane wall through `point` with outward normal `normal`; returns its body id.
   int plane(const Vec3& point, const Vec3& normal) {
     const int id = add_plane_wall(model, Vec3::UnitZ(), 0);
-    place(id, point, Quat::FromTwoVectors(Vec3::UnitZ(), normal.normalized()), Vec3::Zero());
+    place(id, point, rotation_between(Vec3::UnitZ(), normal), Vec3::Zero());
     return id;
   }
   /// A fixed box wall centred at `centre` with `half_extents` and `orientation`; returns its id.
