@@ -126,6 +126,14 @@ bool slide_by_angle_scan(const Mat3& W, const Vec3& u_free, double mu, Vec3& imp
   return true;
 }
 
+/// Whether W's tangential block is isotropic and uncoupled from the normal row (W_nT = 0,
+/// W_TT = w I, to 1e-12 of the diagonal): the block of two spheres, or of a sphere and a wall,
+/// whose arms lie along the normal. Rounding leaves their off-diagonal terms at ~1e-17 of it.
+bool isotropic_tangential_block(const Mat3& W) {
+  return std::abs(W(0, 1)) + std::abs(W(0, 2)) <= 1e-12 * W(0, 0) &&
+         std::abs(W(1, 2)) + std::abs(W(1, 1) - W(2, 2)) <= 1e-12 * W(1, 1);
+}
+
 }  // namespace
 
 LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) {
@@ -151,6 +159,17 @@ LocalSolution solve_local_contact(const Mat3& W, const Mat3& W_inverse, const Ve
   if (mu == 0.0) {
     // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
     solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
+    return solution;
+  }
+  // Sliding with an isotropic block: u_T = w r_T + u_free_T is along u_free_T whatever r_n, so the
+  // slip direction is d = u_free_T/||u_free_T|| = -stick_T/||stick_T|| and r_n = -u_free_n/W_nn
+  // (= stick_n > 0), outside the cone (||stick_T|| > mu r_n) since it did not stick. Closed form:
+  // ~5x cheaper than the Newton below, which needs two candidates for the same answer; most
+  // sliding points of a sphere packing are of this kind.
+  if (stick_tangential > 0.0 && isotropic_tangential_block(W)) {
+    const double r_n = -u_free.x() / W(0, 0);
+    const double scale = mu * r_n / stick_tangential;
+    solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
     return solution;
   }
   // Sliding: friction opposes the slip, so start from the direction opposite to the sticking

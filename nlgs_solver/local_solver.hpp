@@ -14,9 +14,9 @@ struct LocalSolution {
 ///   0 <= r_n _|_ u_n >= 0,  ||r_T|| <= mu r_n,  and r_T = -mu r_n u_T/||u_T|| when u_T != 0.
 /// Enumerates the three regimes of the law (Jean 1999; Alart & Curnier 1991 give the same
 /// solution set): open (r = 0 when u_free,n >= 0), sticking (u = 0, r = -W^-1 u_free inside the
-/// cone), else sliding, solved for the sliding direction d by a fixed point d <- u_T(d)/||u_T(d)||
-/// (exact in one iteration when W_TT is isotropic and W_nT = 0, as for spheres), with a bracketed
-/// angle search as fallback for strongly coupled blocks.
+/// cone), else sliding: in closed form when W_TT is isotropic and W_nT = 0 (spheres; d is then
+/// along u_free_T), otherwise by Newton on the angle of the sliding direction d (u_T(d) along d),
+/// with a bracketed angle search as fallback for strongly coupled blocks.
 LocalSolution solve_local_contact(const Mat3& delassus, const Vec3& free_velocity, double friction_coefficient);
 
 /// The same solve with W^-1 given: the sweeps solve each contact hundreds of times a step with the

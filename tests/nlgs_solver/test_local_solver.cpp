@@ -84,5 +84,34 @@ TEST(LocalSolver, ZeroesTheNaturalMapOnRandomCoupledBlocks) {
   EXPECT_GT(sliding, 1000);  // the sliding branch was exercised
 }
 
+// Sphere blocks (W_nT = 0, W_TT = w I, up to rounding-sized off-diagonal terms) take the closed
+// form; the same blocks made anisotropic by 1e-8 take the Newton path. Both must zero the natural
+// map and agree to the size of that anisotropy.
+TEST(LocalSolver, ClosedFormOnIsotropicBlocksAgreesWithTheNewtonPath) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int sliding = 0;
+  for (int k = 0; k < 5000; ++k) {
+    const double normal = 1.0 + 0.9 * u(rng), tangential = 3.5 * (1.0 + 0.9 * u(rng));
+    Mat3 W = Mat3::Zero();
+    W(0, 0) = normal;
+    W(1, 1) = W(2, 2) = tangential;
+    W(0, 1) = W(1, 0) = 1e-17 * u(rng);  // what rounding leaves of a sphere pair's coupling
+    W(1, 2) = W(2, 1) = 1e-17 * u(rng);
+    Mat3 anisotropic = W;
+    anisotropic(2, 2) *= 1.0 + 1e-8;
+    const Vec3 q(u(rng), 3.0 * u(rng), 3.0 * u(rng));
+    const double mu = std::abs(u(rng));
+    const LocalSolution closed = solve_local_contact(W, q, mu);
+    const LocalSolution newton = solve_local_contact(anisotropic, q, mu);
+    ASSERT_EQ(closed.regime, newton.regime) << "case " << k;
+    const double scale = 1.0 + q.norm();
+    ASSERT_LT(natural_map(closed.impulse, W * closed.impulse + q, mu).norm(), 1e-12 * scale) << "case " << k;
+    ASSERT_LT((closed.impulse - newton.impulse).norm(), 1e-7 * scale) << "case " << k;
+    sliding += closed.regime == LocalSolution::Regime::sliding;
+  }
+  EXPECT_GT(sliding, 1000);
+}
+
 }  // namespace
 }  // namespace rubble
