@@ -71,11 +71,12 @@ double max_overlap(const TestScene& s) {
 // energy 28.1 J at t = 5 s (ratio 5.1e-6); max speed 5.5e-3 sqrt(GM/R0) (a rolling grain), 99th
 // percentile 1.3e-3; packed radius 4.75 m; 1853 contacts; at most 23 sweeps a step. 2026-11-24
 // (midpoint form, displacement-only recovery; 31.7 s CPU): kinetic energy 17.4 J (ratio 3.2e-6);
-// max speed 1.1e-3 sqrt(GM/R0); deepest overlap 9.4e-3 d_max; 1847 contacts; at most 28 sweeps. Before (velocity
-// correction, diluted residual at 1e-4, 4.9 s CPU): peak kinetic energy 5.5e6 J at t = 0.57 s; deepest overlap 8.9e-3
-// d_max (around t = 0.8 s, the impact; tolerance 1e-5 does not lower it: it comes from the capped overlap correction,
-// not the solve); farthest 7.52 m (never beyond the start); kinetic energy 3.0 J at t = 5 s (ratio 5.5e-7, 6.3 orders);
-// max speed 1.2e-3 sqrt(GM/R0) = 1.1e-2 m/s; packed radius 4.9 m; 1836 contacts; at most 32 sweeps per step.
+// max speed 1.1e-3 sqrt(GM/R0); deepest overlap 9.4e-3 d_max; 1847 contacts; at most 28 sweeps.
+// Before (velocity correction, diluted residual at 1e-4, 4.9 s CPU): peak kinetic energy 5.5e6 J at
+// t = 0.57 s; deepest overlap 8.9e-3 d_max (around t = 0.8 s, the impact; tolerance 1e-5 does not
+// lower it: it comes from the capped overlap correction, not the solve); farthest 7.52 m (never
+// beyond the start); kinetic energy 3.0 J at t = 5 s (ratio 5.5e-7, 6.3 orders); max speed 1.2e-3
+// sqrt(GM/R0) = 1.1e-2 m/s; packed radius 4.9 m; 1836 contacts; at most 32 sweeps per step.
 TEST(StabilityRush, FiveHundredSpheresRushToTheCentreAndPackAtRest) {
   TestScene s(2000.0, 0.3, 0.0);
   const double R0 = 8.0;         // m, radius of the initial ball
