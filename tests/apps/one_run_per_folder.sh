@@ -12,8 +12,11 @@ set -u
 rubble=$1 scene=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
 out=$work/run
+first=
 fail() {
   echo "one_run_per_folder: FAILED: $*"
+  # Do not leave the first run held (SIGSTOP below) or running after a failure.
+  [ -n "$first" ] && kill -CONT "$first" 2> /dev/null && kill -TERM "$first" 2> /dev/null
   for log in "$work"/*.log; do echo "--- $log"; head -c 2000 "$log"; done
   exit 1
 }
