@@ -79,18 +79,14 @@ std::vector<std::uint32_t> number_bodies(const Model& model, const SweepPlan& pl
 
 }  // namespace
 
-void gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan, const ContactList& contacts,
-                            const BodyVelocities& velocity, bool parallel, CompactProblem& out) {
-  out.body_id.clear();
+CompactProblem gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan,
+                                      const ContactList& contacts, const BodyVelocities& velocity, bool parallel) {
+  CompactProblem out;
   const std::vector<std::uint32_t> local = number_bodies(model, plan, contacts, out);
-  // Bodies and points are written whole below; drift and watch start from their defaults.
   out.bodies.resize(out.body_id.size());
   out.points.resize(plan.order.size());
-  out.drift.assign(out.body_id.size(), CompactProblem::Drift{});
-  out.watch.assign(plan.order.size(), CompactProblem::OpenWatch{});
-  out.rotation_of_point.clear();
-  out.rotation.clear();
-  out.tangential_target.clear();
+  out.drift.resize(out.body_id.size());
+  out.watch.resize(plan.order.size());
   const auto bodies = static_cast<std::ptrdiff_t>(out.body_id.size());
   const auto n = static_cast<std::ptrdiff_t>(plan.order.size());
 #pragma omp parallel if (parallel)
@@ -120,6 +116,7 @@ void gather_compact_problem(const Model& model, const State& state, const SweepP
   }
   if (model.contact_laws.any_resists_rotation()) gather_rotations(model, plan, contacts, out);
   if (model.contact_laws.any_tangential_restitution()) gather_tangential_targets(model, state, plan, contacts, out);
+  return out;
 }
 
 void scatter_compact_problem(const Model& model, const SweepPlan& plan, const CompactProblem& compact,

@@ -293,10 +293,9 @@ struct ExtendedProblem {
 /// velocities at the start of the solve) and the contacts' impulses (not yet applied to the
 /// velocities). Each body's world inverse inertia is computed here (the same function as the
 /// preparation's, hence the same value), so no per-body array is kept beside the copy.
-/// `parallel`: fill the bodies and points concurrently. `out` is overwritten whole; only the
-/// capacity of its arrays is reused (SolverScratch).
-void gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan, const ContactList& contacts,
-                            const BodyVelocities& velocity, bool parallel, CompactProblem& out);
+/// `parallel`: fill the bodies and points concurrently.
+CompactProblem gather_compact_problem(const Model& model, const State& state, const SweepPlan& plan,
+                                      const ContactList& contacts, const BodyVelocities& velocity, bool parallel);
 
 /// Warm start of the rotation blocks (rolling and twisting resistance), after the forces' warm
 /// start: each block's carried angular impulse, projected on its bounds for the warm-started normal

@@ -14,7 +14,6 @@
 
 #include "core/parallel.hpp"
 #include "nlgs_solver/compact_problem.hpp"
-#include "nlgs_solver/solver_scratch.hpp"
 #include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/polish.hpp"
 #include "nlgs_solver/sweep_plan.hpp"
@@ -178,12 +177,6 @@ bool may_polish_laws(const Model& model) {
 
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
                            BodyVelocities& velocity) {
-  SolverScratch scratch;
-  return solve_contacts(model, state, options, contacts, velocity, scratch);
-}
-
-SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
-                           BodyVelocities& velocity, SolverScratch& scratch) {
   // No polish with rolling or twisting resistance or tangential restitution: the polish knows the
   // Signorini-Coulomb-Newton law only.
   const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
@@ -194,8 +187,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   bool parallel = static_cast<std::ptrdiff_t>(contacts.size()) >= min_parallel_items && plan.group_start.size() > 2 &&
                   omp_get_max_threads() > 1;
   // The copy's velocities are the free velocities and its impulses last step's, not yet applied.
-  CompactProblem& compact = scratch.compact;
-  gather_compact_problem(model, state, plan, contacts, velocity, parallel, compact);
+  CompactProblem compact = gather_compact_problem(model, state, plan, contacts, velocity, parallel);
   const ResidualScale scale = residual_scale(compact, plan, parallel);
   const bool cohesive = model.contact_laws.any_cohesive();
   if (options.problem_observer) {

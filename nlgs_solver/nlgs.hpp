@@ -91,17 +91,9 @@ SweepPlan plan_sweep(const Model& model, const State& state, const ContactList& 
 void prepare_contacts(const Model& model, const State& state, const BodyVelocities& free_velocity,
                       const IntegratorOptions& integrator, const SolverOptions& options, ContactList& contacts);
 
-struct SolverScratch;  // solver_scratch.hpp
-
 /// Solves for the contact impulses and updates `velocity` (which holds the free velocity on
 /// entry and v_{n+1} = v_free + M^-1 H r on exit). Contacts hold warm-start impulses on entry.
 /// In nlgs.cpp: warm start, sweeps until converged (with Newton polishes, polish.cpp), final residual.
-/// `scratch`: the solver's arrays, kept by the caller from step to step (StepWorkspace::solver)
-/// so that a step reuses their memory; what they hold on entry is never read.
-SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
-                           BodyVelocities& velocity, SolverScratch& scratch);
-
-/// The same with arrays of its own (one call, e.g. a test's).
 SolverStats solve_contacts(const Model& model, const State& state, const SolverOptions& options, ContactList& contacts,
                            BodyVelocities& velocity);
 

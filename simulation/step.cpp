@@ -110,8 +110,7 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
   // v_{n+1} = v_free + M^-1 H r happens inside the sweeps, contact by contact.
   prepare_contacts(model, state, workspace.velocity, integrator, options.solver, workspace.carry.contacts);
   timer.finish(Stage::solver_preparation);
-  report.solver =
-      solve_contacts(model, state, options.solver, workspace.carry.contacts, workspace.velocity, workspace.solver);
+  report.solver = solve_contacts(model, state, options.solver, workspace.carry.contacts, workspace.velocity);
   timer.finish(Stage::nlgs_sweeps);
 
   // 8. overlap_recovery: displacements (not velocities) that remove overlap left beyond the allowed depth.

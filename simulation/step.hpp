@@ -10,7 +10,6 @@
 #include "core/model.hpp"
 #include "core/state.hpp"
 #include "nlgs_solver/nlgs.hpp"
-#include "nlgs_solver/solver_scratch.hpp"
 #include "simulation/external_forces.hpp"
 #include "simulation/step_carry.hpp"
 
@@ -65,7 +64,6 @@ struct StepWorkspace {
   std::vector<Vec3> force;               ///< scratch: external force per body
   BodyVelocities velocity;               ///< scratch: free, then end-of-step velocities
   BodyVelocities displacement_velocity;  ///< scratch: the overlap recovery's pseudo-velocities (often empty)
-  SolverScratch solver;                  ///< scratch: the NLGS solver's arrays (solve_contacts)
 };
 
 /// Advances `state` by one step of the Moreau-Jean theta-method in Moreau's midpoint form

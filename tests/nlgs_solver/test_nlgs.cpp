@@ -15,7 +15,6 @@
 
 #include "nlgs_solver/compact_problem.hpp"
 #include "nlgs_solver/nlgs.hpp"
-#include "nlgs_solver/solver_scratch.hpp"
 #include "nlgs_solver/sweep.hpp"
 #include "nlgs_solver/sweep_plan.hpp"
 
@@ -254,48 +253,6 @@ struct BoxStep {
   }
 };
 
-// The arrays a step keeps for the next (SolverScratch) hold the last problem on entry: a large
-// problem after a small one and a small one after a large one (larger arrays, other bodies, a
-// different count of walls) must give, bit for bit, what arrays of their own give.
-TEST(SolverScratch, ReusedArraysGiveTheResultOfFreshOnes) {
-  struct Problem {
-    TestScene scene;
-    ContactList contacts;
-    BodyVelocities free;
-    explicit Problem(TestScene s) : scene(std::move(s)) {
-      scene.steps(2);
-      contacts = scene.workspace.carry.contacts;
-      free = free_velocities(scene);
-      prepare_contacts(scene.model, scene.state, free, scene.options.integrator, scene.options.solver, contacts);
-    }
-    // Impulses and velocities after a solve through `scratch`, as bytes.
-    std::vector<double> solve(SolverScratch& scratch) const {
-      ContactList c = contacts;
-      BodyVelocities v = free;
-      solve_contacts(scene.model, scene.state, scene.options.solver, c, v, scratch);
-      std::vector<double> out;
-      for (const Contact& k : c) out.insert(out.end(), k.impulse.data(), k.impulse.data() + 3);
-      for (std::size_t b = 0; b < v.linear.size(); ++b) {
-        out.insert(out.end(), v.linear[b].data(), v.linear[b].data() + 3);
-        out.insert(out.end(), v.angular[b].data(), v.angular[b].data() + 3);
-      }
-      return out;
-    }
-  };
-  const Problem small(pile(0.3));
-  const Problem large(packed_box(0.5, Vec3(0.05, -0.03, 0.02)));
-  ASSERT_GT(large.contacts.size(), 100 * small.contacts.size());
-  SolverScratch fresh_small, fresh_large, reused;
-  const std::vector<double> small_alone = small.solve(fresh_small);
-  const std::vector<double> large_alone = large.solve(fresh_large);
-  small.solve(reused);
-  const std::vector<double> large_after_small = large.solve(reused);
-  const std::vector<double> small_after_large = small.solve(reused);
-  EXPECT_EQ(0, std::memcmp(large_alone.data(), large_after_small.data(), large_alone.size() * sizeof(double)));
-  EXPECT_EQ(0, std::memcmp(small_alone.data(), small_after_large.data(), small_alone.size() * sizeof(double)));
-  EXPECT_EQ(reused.compact.size(), small.contacts.size());
-}
-
 TEST(SweepPlan, ThreadedSweepsEqualASequentialGaussSeidelInPlanOrderBitForBit) {
   // This step's problem: the contacts at the current state, prepared from a free velocity.
   BoxStep box;
@@ -357,8 +314,8 @@ TEST(SweepPlan, PointsPassedByAreOpenAfterEverySweep) {
   prepare_contacts(box.scene.model, box.scene.state, box.free, box.scene.options.integrator, defaults, box.contacts);
   for (Contact& c : box.contacts) c.impulse = Vec3::Zero();
   const SweepPlan plan = plan_sweep(box.scene.model, box.scene.state, box.contacts, defaults.block_count);
-  CompactProblem compact;
-  gather_compact_problem(box.scene.model, box.scene.state, plan, box.contacts, box.free, false, compact);
+  CompactProblem compact =
+      gather_compact_problem(box.scene.model, box.scene.state, plan, box.contacts, box.free, false);
   std::vector<std::size_t> positions(compact.size());
   for (std::size_t p = 0; p < positions.size(); ++p) positions[p] = p;
   GroupSweeps groups;
