@@ -7,7 +7,7 @@ Needs a build tree with `rubble` and `bench_fclib` (default: build-bench, config
 here if missing). Runs, in order:
   1. FCLib problems (shared/fclib): error reached vs sweeps and vs wall time, for the plain NLGS,
      over-relaxed NLGS (omega = 1.6) and NLGS + Levenberg-Marquardt polish -> docs/solver-fclib.png
-  2. an accretion snapshot (343 self-gravitating grains after the collapse, see the doc): NLGS
+  2. an accretion snapshot (3 375 self-gravitating grains after the collapse, see the doc): NLGS
      tolerance vs residual, interpenetration, wall time -> docs/solver-tolerance-accretion.png
   3. time step h vs energy error, interpenetration and wall time on the same snapshot and on a
      resting stack of spheres -> docs/solver-timestep.png
@@ -38,6 +38,9 @@ FILES = ["Box_Stacks-i0122-82-5_local.hdf5", "Capsules-i125-1213.hdf5", "Spheres
          "fclib_local_problem_test_BoxesStack.hdf5"]
 WORK = os.path.join("/tmp", "rubble-solver-charts")
 G = 6.674e-11
+# The accretion snapshot's grid: CELLS^3 grains (the study's 3 375-grain cloud).
+CELLS = 15
+GRAINS = CELLS**3
 
 
 def run(cmd, **kw):
@@ -173,18 +176,19 @@ TREE = '[gravity]\ntype = "tree"\nG = 6.674e-11\ntheta = 0.5\norder = 2\n'
 
 
 def accretion_snapshot(rubble, quick):
-    """343 grains (7^3) of the accretion study's cloud, run through the collapse; the last state
-    is the snapshot the other runs start from."""
-    scene = os.path.join(WORK, "accretion-343.toml")
-    n = 7
+    """GRAINS grains (CELLS^3) of the accretion study's cloud, run through the collapse; the last
+    state is the snapshot the other runs start from."""
+    scene = os.path.join(WORK, f"accretion-{GRAINS}.toml")
+    n = CELLS
     with open(scene, "w") as fh:
-        fh.write('name = "accretion-343"\nseed = 1\n\n[time]\ndt = 0.5\nend_time = %r\n\n' % (900.0 if quick else 1500.0))
+        end_time = 900.0 if quick else 1500.0
+        fh.write(f'name = "accretion-{GRAINS}"\nseed = 1\n\n[time]\ndt = 0.5\nend_time = {end_time!r}\n\n')
         fh.write(TREE + '\n[output]\ndirectory = "out"\nsnapshot_interval = 100.0\n\n')
         fh.write('[[materials]]\nname = "grain"\ndensity = 5164.0\n\n'
                  '[[contact_laws]]\nmaterials = ["grain", "grain"]\nfriction = 0.0\nrestitution = 0.0\n\n')
         fh.write(f'[[generators]]\ntype = "cubic_grid"\ncells_per_side = {n}\nradius_min = 3.75\nradius_max = 5.0\n'
                  'distribution = "uniform_volume_fraction"\n')
-    out = os.path.join(WORK, "accretion-343")
+    out = os.path.join(WORK, f"accretion-{GRAINS}")
     seconds = run_scene(rubble, scene, out)
     series, snaps, model = read_run(out)
     return model, snaps[-1], seconds
@@ -196,7 +200,7 @@ def tolerance_chart(rubble, model, snap, quick):
     window, dt = 100.0, 0.5
     for tol in [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6] + ([] if quick else [1e-7]):
         scene = os.path.join(WORK, f"tol-{tol:g}.toml")
-        write_scene(scene, "accretion-343-snapshot", dt, window, tol, 10000, bodies, TREE, 0.0,
+        write_scene(scene, f"accretion-{GRAINS}-snapshot", dt, window, tol, 10000, bodies, TREE, 0.0,
                     snapshot_interval=5.0)
         out = os.path.join(WORK, f"tol-{tol:g}")
         run_scene(rubble, scene, out)
@@ -226,7 +230,7 @@ def tolerance_chart(rubble, model, snap, quick):
     for a in ax:
         a.set_xlabel("NLGS tolerance")
         a.axvline(1e-4, color="grey", lw=0.8, ls="--")
-    fig.suptitle(f"Accretion snapshot (343 grains after collapse, {window:g} s at h = {dt} s, tree gravity): "
+    fig.suptitle(f"Accretion snapshot ({GRAINS} grains after collapse, {window:g} s at h = {dt} s, tree gravity): "
                  "rubble default tolerance 1e-4 (dashed)", fontsize=10)
     fig.tight_layout()
     fig.savefig(os.path.join(DOCS, "solver-tolerance-accretion.png"), dpi=90)
@@ -255,7 +259,7 @@ def timestep_chart(rubble, model, snap, quick):
     steps = [4.0, 2.0, 1.0, 0.5, 0.25] + ([] if quick else [0.125])
     for dt in steps:
         scene = os.path.join(WORK, f"dt-{dt:g}.toml")
-        write_scene(scene, "accretion-343-snapshot", dt, window, 1e-4, 1000, bodies, TREE, 0.0,
+        write_scene(scene, f"accretion-{GRAINS}-snapshot", dt, window, 1e-4, 1000, bodies, TREE, 0.0,
                     snapshot_interval=max(dt, 5.0))
         out = os.path.join(WORK, f"dt-{dt:g}")
         run_scene(rubble, scene, out)
@@ -285,7 +289,7 @@ def timestep_chart(rubble, model, snap, quick):
             w.writeheader()
             w.writerows(rows)
     fig, ax = plt.subplots(2, 3, figsize=(14, 7))
-    for i, (rows, label, default) in enumerate(((acc, "accretion snapshot (343 grains, 100 s)", 0.5),
+    for i, (rows, label, default) in enumerate(((acc, f"accretion snapshot ({GRAINS} grains, 100 s)", 0.5),
                                                  (stack, "stack of 10 spheres at rest (1 s)", 1e-4))):
         h = [r["dt"] for r in rows]
         # The accretion reference (smallest h) has no error of its own: left out of the log plot.
