@@ -399,6 +399,24 @@ double fclib_error(const LocalProblem& problem, const std::vector<double>& r, co
   return std::sqrt(f2) / (q_norm > 0.0 ? q_norm : 1.0);
 }
 
+std::vector<double> point_residuals(const LocalProblem& problem, const std::vector<double>& r,
+                                    const std::vector<double>& u) {
+  std::vector<double> out(problem.contact_count());
+  const SparseMatrix& W = problem.W;
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const auto row = static_cast<int>(3 * k);
+    double normal_diagonal = 1.0;
+    for (int e = W.row_start[static_cast<std::size_t>(row)]; e < W.row_start[static_cast<std::size_t>(row) + 1]; ++e) {
+      const auto entry = static_cast<std::size_t>(e);
+      if (W.column[entry] == row && W.value[entry] > 0.0) normal_diagonal = W.value[entry];
+    }
+    const Vec3 rk(r[3 * k], r[3 * k + 1], r[3 * k + 2]);
+    const Vec3 uk(u[3 * k], u[3 * k + 1], u[3 * k + 2]);
+    out[k] = natural_map(rk, uk, problem.mu[k], normal_diagonal).norm();
+  }
+  return out;
+}
+
 namespace {
 
 /// When the sweeps' FCLib error is computed. It costs a product u = W r + q, as much as the sweep

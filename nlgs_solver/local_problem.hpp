@@ -80,6 +80,13 @@ std::vector<double> local_velocities(const LocalProblem& problem, const std::vec
 /// The FCLib error measure of (r, u) for the problem (Acary et al. 2014).
 double fclib_error(const LocalProblem& problem, const std::vector<double>& r, const std::vector<double>& u);
 
+/// Per contact, the norm of its natural map in velocity units, ||natural_map(r_k, u_k, mu_k,
+/// W_nn)|| with W_nn contact k's normal diagonal entry (1 where it is not positive): the measure
+/// the simulation's residual sums (nlgs_solver/README.md, "Convergence criterion"), point by point,
+/// to see where a solution's residual sits.
+std::vector<double> point_residuals(const LocalProblem& problem, const std::vector<double>& r,
+                                    const std::vector<double>& u);
+
 /// Solves the problem by NLGS from r = 0 with the simulation's sweep and local solver; the error
 /// (one W r product) is evaluated after every sweep until it falls at a steady rate, then where
 /// that rate says the tolerance may be met, and at least every 16 sweeps. With PolishMethod::newton,

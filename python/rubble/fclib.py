@@ -50,7 +50,9 @@ def solve(problem, tolerance=1e-8, max_iterations=10000, relaxation=1.0, order="
 
     Options as `rubble fclib`: tolerance on ||F||/||q||, max_iterations sweeps, relaxation omega in
     (0, 2), order "as_stored" or "shuffled" (with seed), polish "newton" (default, as the CLI) or
-    "none". Returns {"r", "u", "iterations", "newton_iterations", "error", "converged", "contacts"}.
+    "none". Returns {"r", "u", "iterations", "newton_iterations", "error", "converged", "contacts",
+    "point_residual"}: point_residual[k] is contact k's natural map in velocity units (the measure
+    the simulation's residual sums), to see where the error sits.
     Raises FclibFileError for a bad file, ValueError for bad arrays or options.
     """
     args = (float(tolerance), int(max_iterations), float(relaxation), str(order), int(seed), str(polish))

@@ -125,6 +125,7 @@ py::dict solve_problem(const LocalProblem& problem, const LocalProblemOptions& o
   d["iterations"] = solution.iterations;
   d["newton_iterations"] = solution.newton_iterations;
   d["error"] = solution.error;
+  d["point_residual"] = py::array_t<double>(py::cast(point_residuals(problem, solution.r, solution.u)));
   d["converged"] = solution.converged;
   d["contacts"] = problem.contact_count();
   return d;

@@ -79,6 +79,27 @@ def test_fclib_single_contact_is_solved_exactly():
         assert sol["u"][0] == pytest.approx(0.0, abs=1e-12)
 
 
+def test_fclib_point_residual_sums_to_the_fclib_error_on_a_unit_diagonal():
+    # W scaled to a unit diagonal: each point's natural map in velocity units (rho = W_nn = 1) is
+    # the FCLib map, so ||point_residual|| / ||q|| is the FCLib error of the same iterate.
+    rng = np.random.default_rng(3)
+    nc = 6
+    A = rng.normal(size=(3 * nc, 3 * nc))
+    W = A @ A.T + 0.5 * np.eye(3 * nc)
+    d = 1.0 / np.sqrt(np.diag(W))
+    W = W * d[:, None] * d[None, :]
+    q = rng.normal(size=3 * nc)
+    q[0::3] -= 1.0
+    mu = np.full(nc, 0.4)
+    one_sweep = rubble.fclib.solve((W, q, mu), tolerance=1e-300, max_iterations=1, polish="none")
+    assert len(one_sweep["point_residual"]) == nc
+    assert one_sweep["error"] > 1e-6
+    assert np.linalg.norm(one_sweep["point_residual"]) / np.linalg.norm(q) == pytest.approx(one_sweep["error"],
+                                                                                          rel=1e-12)
+    solved = rubble.fclib.solve((W, q, mu), tolerance=1e-12)
+    assert solved["converged"] and max(solved["point_residual"]) < 1e-10
+
+
 def test_fclib_file_round_trip(tmp_path):
     # An FCLib file written with h5py (layout: nlgs_solver/fclib_file.hpp), W stored as triplets.
     rng = np.random.default_rng(1)

@@ -46,6 +46,26 @@ TEST(LocalProblem, ConvergesToTheFclibErrorOnRandomProblems) {
   }
 }
 
+// One contact, W = diag(2, 1, 1), q = (-1, 0.5, 0), mu = 0.1 (solution r = (0.5, -0.05, 0): it
+// slides). At r = (0.5, 0, 0), u = (0, 0.5, 0) and De Saxce's u^ = (0.05, 0.5, 0); with rho = W_nn = 2,
+// x = rho r - u^ = (0.95, -0.5, 0) lies outside the cone, whose projection has normal part
+// (0.95 + 0.1 * 0.5) / 1.01 = 1/1.01 and tangential part 0.1/1.01 along -e_t: F = (1, 0, 0) - that
+// = (0.01, 0.1, 0) / 1.01, |F| = 0.1 / sqrt(1.01), twice the rho = 1 map (the cone is a cone).
+TEST(LocalProblem, PointResidualsAreTheNaturalMapInVelocityUnits) {
+  LocalProblem p;
+  p.W = {3, 3, {0, 1, 2, 3}, {0, 1, 2}, {2.0, 1.0, 1.0}};
+  p.q = {-1.0, 0.5, 0.0};
+  p.mu = {0.1};
+  const std::vector<double> guess = {0.5, 0.0, 0.0};
+  const std::vector<double> at_guess = point_residuals(p, guess, local_velocities(p, guess));
+  ASSERT_EQ(at_guess.size(), 1U);
+  EXPECT_NEAR(at_guess[0], 0.1 / std::sqrt(1.01), 1e-15);
+  // |q| = sqrt(1.25): the FCLib error is the rho = 1 map over it, half the velocity-unit residual here.
+  EXPECT_NEAR(fclib_error(p, guess, local_velocities(p, guess)) * std::sqrt(1.25), at_guess[0] / 2.0, 1e-15);
+  const std::vector<double> solution = {0.5, -0.05, 0.0};
+  EXPECT_NEAR(point_residuals(p, solution, local_velocities(p, solution))[0], 0.0, 1e-15);
+}
+
 TEST(LocalProblem, ShuffledOrderReachesTheSameTolerance) {
   const LocalProblem p = random_problem(10, 7);
   LocalProblemOptions options;
