@@ -51,8 +51,9 @@ echo "== address + undefined-behaviour sanitizer build =="
 # -O1 -g1 (line tables: reports still give file and line): the build compiles in less than half
 # the time of -O2 -g (tests/nlgs_solver/test_nlgs.cpp: 24 s against 52 s) and was the longest
 # part of CI; the test files compile at -O1 too (at -O0 their copies of the libraries' inline
-# code replaced the libraries' own at link time: tests/CMakeLists.txt). Executables labelled slow are not built here (tests/CMakeLists.txt), nor the CUDA backend
-# (no GPU to run it on a CI machine; the release build compiles it where nvcc exists).
+# code replaced the libraries' own at link time: tests/CMakeLists.txt). Executables labelled slow
+# are not built here (tests/CMakeLists.txt), nor the CUDA backend (no GPU to run it on a CI
+# machine; the release build compiles it where nvcc exists).
 cmake -S . -B build/sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRUBBLE_WERROR=ON \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DRUBBLE_SANITIZE=address,undefined -DRUBBLE_BUILD_BENCH=OFF -DRUBBLE_BUILD_PYTHON=OFF -DRUBBLE_GRAVITY_CUDA=OFF
