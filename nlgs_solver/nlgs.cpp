@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -79,6 +80,47 @@ void apply_warm_start(const SweepPlan& plan, const ContactList& contacts, bool c
   });
 }
 
+/// When the sweeps over-relax (SolverOptions::relaxation > 1; nlgs_solver/README.md, "Over-
+/// relaxation"). Projected successive over-relaxation moves each point past its local solution,
+/// which speeds up the slow, smooth modes that plain Gauss-Seidel removes one layer of contacts a
+/// sweep (Young 1954; Cryer 1971 for the projected form), but a frictional problem whose points
+/// change status can stall under it. So omega is used only between a plain first sweep (most
+/// warm-started steps end there) and plain last sweeps: from the sweep whose residual is within
+/// `near_tolerance` times the tolerance, so that the test ending the solve is a plain sweep's, and
+/// for good once a `window` of sweeps has not lowered the best residual to `progress` times the
+/// previous window's. It reads the sweep residuals only, which do not depend on the thread count.
+struct RelaxationSchedule {
+  static constexpr int window = 20;
+  static constexpr double progress = 0.9;
+  static constexpr double near_tolerance = 3.0;
+
+  double requested = 1.0;  ///< SolverOptions::relaxation
+  double tolerance = 0.0;  ///< SolverOptions::tolerance
+  bool plain = false;      ///< omega = 1 from now on, for this step
+  int sweeps = 0;          ///< sweeps observed so far
+  double window_best = std::numeric_limits<double>::infinity();
+  double previous_window_best = std::numeric_limits<double>::infinity();
+
+  /// omega for the next sweep (under-relaxation, omega < 1, is used as asked in every sweep).
+  double relaxation() const {
+    if (requested <= 1.0) return requested;
+    return plain || sweeps == 0 ? 1.0 : requested;
+  }
+
+  /// After each sweep, with its relative residual ||F|| / sqrt(closing^2 + impulses^2).
+  void observe(double relative_residual) {
+    ++sweeps;
+    if (requested <= 1.0 || plain) return;
+    if (relative_residual <= near_tolerance * tolerance) plain = true;
+    window_best = std::min(window_best, relative_residual);
+    if (sweeps % window == 0) {
+      if (window_best > progress * previous_window_best) plain = true;
+      previous_window_best = window_best;
+      window_best = std::numeric_limits<double>::infinity();
+    }
+  }
+};
+
 /// Sweeps (planned_sweep) until the sweep residual meets the tolerance or max_iterations sweeps
 /// are done, with Newton polishes after polish_after, 2 polish_after, ... sweeps when `may_polish`.
 /// Sets the stats' iterations, converged and polish counts. `parallel` is cleared when a threaded
@@ -94,21 +136,28 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   ExtendedProblem extended{compact};
   const bool plain = compact.rotation.empty() && compact.tangential_target.empty();
   int next_polish = options.polish_after;
+  RelaxationSchedule schedule{.requested = options.relaxation, .tolerance = options.tolerance};
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
-    const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, options.relaxation, parallel, groups)
-                                    : planned_sweep(extended, plan, positions, options.relaxation, parallel, groups);
+    const double relaxation = schedule.relaxation();
+    const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, relaxation, parallel, groups)
+                                    : planned_sweep(extended, plan, positions, relaxation, parallel, groups);
     stats.passed_by += sweep.passed_by;
     if (parallel) {
       double work = 0.0;
       for (const double t : groups.seconds) work += t;
       if (std::chrono::duration<double>(Clock::now() - sweep_start).count() > work) parallel = false;
     }
-    if (std::sqrt(sweep.residual_squared) <=
-        options.tolerance * std::sqrt(scale.closing_squared + sweep.impulse_squared)) {
+    const double scale_squared = scale.closing_squared + sweep.impulse_squared;
+    // Only a plain (or under-relaxed) sweep may end the solve: an over-relaxed sweep's residual,
+    // taken before each point's update, can understate the residual after it.
+    if (std::sqrt(sweep.residual_squared) <= options.tolerance * std::sqrt(scale_squared) && relaxation <= 1.0) {
       stats.converged = true;
       break;
     }
+    const double relative_residual =
+        std::sqrt(sweep.residual_squared / std::max(scale_squared, std::numeric_limits<double>::min()));
+    schedule.observe(relative_residual);
     if (may_polish && stats.iterations == next_polish && stats.polish_attempts < options.polish_attempts_per_step) {
       ++stats.polish_attempts;
       next_polish *= 2;

@@ -22,8 +22,10 @@ struct LocalProblem;  // local_problem.hpp (which includes this header)
 struct SolverOptions {
   double tolerance = 1e-4;    ///< stop when the sweep residual (see nlgs_solver/README.md) is below this
   int max_iterations = 1000;  ///< sweeps at most
-  double relaxation = 1.0;    ///< omega in (0, 2): r <- omega r_local + (1 - omega) r_old
-  bool warm_start = true;     ///< start from last step's impulses of persistent contacts
+  /// omega in (0, 2): r <- omega r_local + (1 - omega) r_old. Above 1, only between a plain first
+  /// sweep and plain last sweeps (nlgs_solver/README.md, "Over-relaxation").
+  double relaxation = 1.5;
+  bool warm_start = true;  ///< start from last step's impulses of persistent contacts
   /// The position-level recovery of overlaps left at the end of the step (overlap_recovery.hpp):
   /// it moves positions only, so it creates no kinetic energy.
   OverlapRecoveryOptions overlap_recovery{};

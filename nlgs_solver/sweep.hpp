@@ -54,7 +54,12 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     result.residual_squared += natural_map(r, u, mu, W(0, 0)).squaredNorm();
     const Vec3 free_velocity = u - W * r;  // what u would be without this contact's impulse
     Vec3 next = solve_local_contact(W, problem.delassus_inverse(k), free_velocity, mu).impulse;
-    if (relaxation != 1.0) next = relaxation * next + (1.0 - relaxation) * r;
+    if (relaxation != 1.0) {
+      next = relaxation * next + (1.0 - relaxation) * r;
+      // Over-relaxation steps past the local solution and can leave the cone; projected SOR
+      // (Cryer 1971) keeps every iterate admissible. Under-relaxation mixes two admissible points.
+      if (relaxation > 1.0) next = project_onto_coulomb_cone(next, mu);
+    }
     const Vec3 delta = next - r;
     r = next;
     result.impulse_squared += (W(0, 0) * next).squaredNorm();

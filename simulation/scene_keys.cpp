@@ -130,7 +130,7 @@ const std::vector<SectionKey<SolverOptions>>& solver_keys() {
       {.name = "relaxation",
        .option = [](O& o) -> OptionRef { return &o.relaxation; },
        .range = open(0.0, 2.0),
-       .doc = "omega: r <- omega r_local + (1 - omega) r_old"},
+       .doc = "omega: r <- omega r_local + (1 - omega) r_old; above 1 only between plain first and last sweeps"},
       {.name = "warm_start",
        .option = [](O& o) -> OptionRef { return &o.warm_start; },
        .doc = "start from last step's impulses of persistent contacts"},

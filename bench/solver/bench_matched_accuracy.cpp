@@ -18,8 +18,8 @@
 // Kertesz & Wolf 2005) and two solves meeting the same tolerance may split a grain's load among
 // its contacts differently, while every grain's net impulse, set by its velocity, is the same.
 // Usage: bench_matched_accuracy CHECKPOINT.ckpt [--tolerances 1e-2,1e-3,1e-4] [--steps 5]
-//        [--max-iterations N] [--reference-tolerance 1e-8] [--reference-sweeps 50000] [--reference-polish]
-//        bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
+//        [--max-iterations N] [--relaxation OMEGA] [--reference-tolerance 1e-8] [--reference-sweeps 50000]
+//        [--reference-polish] bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
 // The second form writes the contact problem of the checkpoint's next step (W, q, mu) as an FCLib
 // local problem and stops: the step's problem replayed by `rubble fclib`, bench_fclib and
 // bench_siconos (bench/solver/README.md).
@@ -96,10 +96,11 @@ StepError compare(const Model& model, const ContactList& candidate, const Contac
 }
 
 nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const StepOptions& base, double tolerance,
-                             int max_iterations, const SolverOptions& reference, int steps) {
+                             int max_iterations, double relaxation, const SolverOptions& reference, int steps) {
   StepOptions options = base;
   options.solver.tolerance = tolerance;
   if (max_iterations > 0) options.solver.max_iterations = max_iterations;
+  if (relaxation > 0.0) options.solver.relaxation = relaxation;
   StepOptions tight = base;
   tight.solver = reference;
   State state = start.state;
@@ -125,6 +126,7 @@ nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const 
     loaded = error.loaded_reference;
   }
   return {{"tolerance", tolerance},
+          {"relaxation", options.solver.relaxation},
           {"steps", steps},
           {"cpu_ms_per_step", 1e3 * cpu / steps},
           {"sweeps_per_step", sweeps / steps},
@@ -164,12 +166,15 @@ int main(int argc, char** argv) {
   int reference_sweeps = 50000;
   int max_iterations = 0;
   bool reference_polish = false;
+  double relaxation = 0.0;
   app.add_option("checkpoint", checkpoint_file, "checkpoint file (run folder/checkpoints/step-*.ckpt)")->required();
   app.add_option("--tolerances", tolerances, "candidate tolerances")->delimiter(',');
   app.add_option("--steps", steps, "steps per candidate")->check(CLI::PositiveNumber);
   app.add_option("--reference-tolerance", reference_tolerance, "tolerance of the tight solve");
   app.add_option("--reference-sweeps", reference_sweeps, "sweeps at most in the tight solve");
   app.add_option("--max-iterations", max_iterations, "sweeps at most in the candidates' solves (default: the scene's)");
+  app.add_option("--relaxation", relaxation, "omega of the candidates' sweeps (default: the scene's)")
+      ->check(CLI::Range(0.0, 2.0));
   app.add_flag("--reference-polish", reference_polish,
                "let the tight solve use the Newton polish whatever its size (nlgs.hpp polish_max_contacts)");
   std::string fclib_file;
@@ -195,7 +200,9 @@ int main(int argc, char** argv) {
       reference.polish_iterations = 50;
     }
     for (const double tolerance : tolerances) {
-      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, reference, steps).dump()
+      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, relaxation, reference,
+                                 steps)
+                       .dump()
                 << std::endl;
     }
   } catch (const std::exception& e) {
