@@ -18,8 +18,9 @@
 // Kertesz & Wolf 2005) and two solves meeting the same tolerance may split a grain's load among
 // its contacts differently, while every grain's net impulse, set by its velocity, is the same.
 // Usage: bench_matched_accuracy CHECKPOINT.ckpt [--tolerances 1e-2,1e-3,1e-4] [--steps 5]
-//        [--max-iterations N] [--relaxation OMEGA] [--reference-tolerance 1e-8] [--reference-sweeps 50000]
-//        [--reference-polish] bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
+//        [--max-iterations N] [--relaxation OMEGA] [--reference-tolerance 1e-8]
+//        [--reference-sweeps 50000] [--reference-polish]
+//        bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
 // The second form writes the contact problem of the checkpoint's next step (W, q, mu) as an FCLib
 // local problem and stops: the step's problem replayed by `rubble fclib`, bench_fclib and
 // bench_siconos (bench/solver/README.md).

@@ -419,12 +419,13 @@ TEST(Relaxation, OverRelaxedSweepsCarryTheColumnsLoadInFewerSweeps) {
       // The solve ends on a plain sweep: the end-of-step residual meets the tolerance itself.
       EXPECT_LE(over.residual, tolerance) << "omega " << relaxation;
       EXPECT_LT(over.floor_error, 300 * tolerance) << "omega " << relaxation << ", tolerance " << tolerance;
+      if (tolerance == 1e-8) {
+        EXPECT_LT(over.floor_error, 1e-6);
+        // Measured: 392 plain sweeps, 124 at omega = 1.5, 50 at 1.7.
+        EXPECT_LT(over.sweeps, plain.sweeps / 2)
+            << "omega " << relaxation << ": " << over.sweeps << " against " << plain.sweeps;
+      }
     }
-    const ColumnSolve over = solve_columns(relaxation, 1e-8);
-    EXPECT_LT(over.floor_error, 1e-6);
-    // Measured: 392 plain sweeps, 124 at omega = 1.5, 50 at 1.7.
-    EXPECT_LT(over.sweeps, plain.sweeps / 2)
-        << "omega " << relaxation << ": " << over.sweeps << " against " << plain.sweeps;
   }
 }
 
@@ -437,7 +438,8 @@ TEST(Relaxation, FallsBackToPlainSweepsWhereOverRelaxationStalls) {
   ASSERT_TRUE(stalled.converged) << stalled.sweeps << " sweeps, residual " << stalled.residual;
   EXPECT_LE(stalled.residual, 1e-8);
   EXPECT_LT(stalled.floor_error, 1e-6);
-  EXPECT_LE(stalled.sweeps, plain.sweeps + 3 * 20) << stalled.sweeps << " against " << plain.sweeps;
+  const int window = 20;  // RelaxationSchedule::window, sweeps without progress before the fall-back
+  EXPECT_LE(stalled.sweeps, plain.sweeps + 3 * window) << stalled.sweeps << " against " << plain.sweeps;
 }
 
 }  // namespace

@@ -47,9 +47,9 @@ const fs::path& settled_deposit() {
     const std::string text = deposit_text();
     Scene scene = parse_scene(text, "branch_deposit.toml");
     // Poured with plain sweeps: with the default over-relaxation the pour comes to rest in
-    // another state, where one grain still settles in the branch's sixth step and that step takes
-    // three sweeps whatever the branch's relaxation (measured; an event of the deposit, not of the
-    // warm start this file tests). The branches below run with the default.
+    // another state, where a grain still settles in the branch's sixth and seventh steps, which
+    // take three sweeps whatever the branch's relaxation (measured; an event of the deposit, not
+    // of the warm start this file tests). The branches below run with the default.
     scene.run.step.solver.relaxation = 1.0;
     fs::path out = fresh_directory("pour");
     scene.run.output.directory = out.string();
