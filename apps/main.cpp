@@ -19,9 +19,9 @@ int main(int argc, char** argv) {
   // threshold to the size of every large block freed (its "dynamic mmap threshold"): a run's
   // contact list and solver copy, tens of MB each step, left as much free heap resident. A fixed
   // 1 MiB threshold returns it as it is freed: the peak resident memory of 1e5 settling spheres
-  // falls by a fifth (bench/RESULTS.md, "Memory per grain"). `rubble run` also sets the mmap
-  // threshold by the scene's size (cmd_run.cpp, serve_step_blocks_from_heap). Results do not
-  // depend on either.
+  // falls by a fifth (bench/RESULTS.md, "Memory per grain"). `rubble run` raises both thresholds
+  // again for small scenes (cmd_run.cpp, serve_step_blocks_from_heap). Results do not depend on
+  // either.
   mallopt(M_TRIM_THRESHOLD, 1 << 20);
 #endif
   CLI::App app{"rubble: Contact Dynamics (Moreau-Jean + NLGS) for rubble-pile asteroids"};
