@@ -385,9 +385,9 @@ constexpr std::size_t heap_served_bodies = 20000;
 /// ~10 us that was a quarter to a half of a small scene's CPU time (bench/RESULTS.md, "Page
 /// faults"). Up to `heap_served_bodies` bodies, blocks up to 32 MiB (glibc's own ceiling for its
 /// dynamic raise) come from the heap and up to 64 MiB of free heap is kept, so the freed memory is
-/// reused step after step, for a few MB of resident memory (7 MB at 1e4 spheres). Larger scenes keep main.cpp's
-/// settings: for 1e5 settling spheres the 32 MiB mmap threshold saved 15 % of the CPU but its
-/// heap's holes cost 0.15 kB a grain, past the 2 kB that "Memory per grain" holds them to.
+/// reused step after step, for a few MB of resident memory (7 MB at 1e4 spheres). Larger scenes
+/// keep main.cpp's settings: for 1e5 settling spheres the 32 MiB mmap threshold saved 15 % of the
+/// CPU but its heap's holes cost 0.15 kB a grain, past the 2 kB that "Memory per grain" holds them to.
 /// Results do not depend on either threshold.
 void serve_step_blocks_from_heap([[maybe_unused]] std::size_t bodies) {
 #if defined(__GLIBC__)

@@ -29,6 +29,7 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -174,8 +175,14 @@ int main(int argc, char** argv) {
   app.add_option("--reference-tolerance", reference_tolerance, "tolerance of the tight solve");
   app.add_option("--reference-sweeps", reference_sweeps, "sweeps at most in the tight solve");
   app.add_option("--max-iterations", max_iterations, "sweeps at most in the candidates' solves (default: the scene's)");
-  app.add_option("--relaxation", relaxation, "omega of the candidates' sweeps (default: the scene's)")
-      ->check(CLI::Range(0.0, 2.0));
+  // The scene key's open range (0, 2): CLI::Range would let 0 (read below as "the scene's") and 2 through.
+  app.add_option("--relaxation", relaxation, "omega of the candidates' sweeps in (0, 2) (default: the scene's)")
+      ->check(CLI::Validator(
+          [](const std::string& text) {
+            const double omega = std::strtod(text.c_str(), nullptr);
+            return omega > 0.0 && omega < 2.0 ? std::string() : "expected omega in (0, 2), got '" + text + "'";
+          },
+          ""));
   app.add_flag("--reference-polish", reference_polish,
                "let the tight solve use the Newton polish whatever its size (nlgs.hpp polish_max_contacts)");
   std::string fclib_file;
