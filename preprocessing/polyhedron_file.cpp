@@ -43,6 +43,16 @@ double parse_number(const std::string& path, int line, const std::string& token)
   return value;
 }
 
+// The three coordinates at tokens[first..first+2], read one after the other: the first bad word
+// of the line is the one reported (arguments of one call are evaluated in an order each compiler
+// chooses: GCC and clang named different words).
+Vec3 parse_point(const std::string& path, int line, const std::vector<std::string>& tokens, std::size_t first) {
+  const double x = parse_number(path, line, tokens[first]);
+  const double y = parse_number(path, line, tokens[first + 1]);
+  const double z = parse_number(path, line, tokens[first + 2]);
+  return {x, y, z};
+}
+
 long parse_integer(const std::string& path, int line, const std::string& token) {
   long value = 0;
   const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
@@ -87,8 +97,7 @@ MeshText read_off(const std::string& path, std::istream& in) {
     const auto tokens = next_tokens("a vertex 'x y z'");
     if (tokens.size() < 3)
       fail(path, line, "expected a vertex 'x y z', got " + std::to_string(tokens.size()) + " numbers");
-    mesh.vertices.emplace_back(parse_number(path, line, tokens[0]), parse_number(path, line, tokens[1]),
-                               parse_number(path, line, tokens[2]));
+    mesh.vertices.push_back(parse_point(path, line, tokens, 0));
     mesh.vertex_lines.push_back(line);
   }
   for (long f = 0; f < nf; ++f) {
@@ -126,8 +135,7 @@ MeshText read_obj(const std::string& path, std::istream& in) {
       if (mesh.vertices.size() == static_cast<std::size_t>(max_polyhedron_file_vertices)) {
         fail(path, line, "more than 10^6 vertices, the limit of a polyhedron file");
       }
-      mesh.vertices.emplace_back(parse_number(path, line, tokens[1]), parse_number(path, line, tokens[2]),
-                                 parse_number(path, line, tokens[3]));
+      mesh.vertices.push_back(parse_point(path, line, tokens, 1));
       mesh.vertex_lines.push_back(line);
     } else if (tokens[0] == "f") {
       if (tokens.size() < 4) fail(path, line, "expected a face 'f i j k ...' with at least 3 vertices");
