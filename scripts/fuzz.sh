@@ -1,20 +1,40 @@
 #!/usr/bin/env bash
-# Builds the scene-parser fuzz target with clang (libFuzzer + AddressSanitizer + UBSan, in its own
-# CMake configuration build/fuzz) and runs it for SECONDS (default 60) from a seed corpus of every
-# scene file in the repository. Exits non-zero if libFuzzer finds a crash, a sanitizer report, an
-# exception other than SceneError, a timeout or an out-of-memory; the input that did it is saved
-# as build/fuzz/crash-* (or timeout-*, oom-*). See fuzz/README.md.
+# Builds the scene-parser fuzz target (libFuzzer + AddressSanitizer + UBSan, clang) and runs it
+# for SECONDS (default 60) from a seed corpus of the repository's small scene files. Exits
+# non-zero if libFuzzer finds a crash, a sanitizer report, an exception other than SceneError, a
+# timeout or an out-of-memory; the input that did it is saved as BUILD/crash-* (or timeout-*,
+# oom-*). See fuzz/README.md.
 #
 # usage: scripts/fuzz.sh [SECONDS]
+#   RUBBLE_FUZZ_BUILD=DIR  a clang sanitizer build configured with -DRUBBLE_BUILD_FUZZ=ON (CI's
+#                          build/sanitize): only the target is built there. Without it the script
+#                          configures build/fuzz with the libraries alone (no tests, benchmarks).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
-build=build/fuzz
 
-mkdir -p "$build"
-CXX=clang++ CC=clang cmake -S fuzz -B "$build" -G Ninja > "$build/configure.log" 2>&1 ||
-  { cat "$build/configure.log"; exit 1; }
+if [ -n "${RUBBLE_FUZZ_BUILD:-}" ]; then
+  build=$RUBBLE_FUZZ_BUILD
+  grep -q '^RUBBLE_BUILD_FUZZ:BOOL=ON$' "$build/CMakeCache.txt" 2> /dev/null ||
+    { echo "fuzz.sh: $build is not a build configured with -DRUBBLE_BUILD_FUZZ=ON" >&2; exit 1; }
+else
+  build=build/fuzz
+  # A build/fuzz of the former layout (fuzz/ as a project of its own) cannot be reconfigured
+  # from the top: start it again.
+  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$PWD\$" "$build/CMakeCache.txt"; then
+    rm -rf "$build"
+  fi
+  mkdir -p "$build"
+  # -O1 and line tables only: reports still name file and line, and it compiles a fifth faster
+  # than -O2 -g.
+  CXX=clang++ CC=clang cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
+    -DRUBBLE_SANITIZE=address,undefined -DRUBBLE_BUILD_FUZZ=ON -DRUBBLE_BUILD_TESTS=OFF \
+    -DRUBBLE_BUILD_BENCH=OFF -DRUBBLE_BUILD_PYTHON=OFF -DRUBBLE_GRAVITY_CUDA=OFF > "$build/configure.log" 2>&1 ||
+    { cat "$build/configure.log"; exit 1; }
+fi
 cmake --build "$build" --target fuzz_scene_parser -j "$(nproc)"
+fuzzer=$build/fuzz/fuzz_scene_parser
 
 seeds="$build/seeds"
 corpus="$build/corpus"
@@ -29,7 +49,9 @@ echo "fuzz: $(ls "$seeds" | wc -l) seed scenes, ${seconds} s"
 # a reproducible prefix of it and a failure can be replayed; longer local runs should use 0.
 # -timeout: one input may take at most 30 s (the parser expands generators: a scene of 10^6 grains
 # is legitimate work, not a hang); -rss_limit_mb: the scene-file limits keep memory below this.
+# Run from the build folder: libFuzzer writes what it finds (crash-*, ...) to the current folder.
+repo=$PWD
 cd "$build"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  ./fuzz_scene_parser -seed="${RUBBLE_FUZZ_SEED:-1}" -max_total_time="$seconds" -timeout=30 -rss_limit_mb=6144 -max_len=16384 \
-  -dict=../../fuzz/scene.dict -print_final_stats=1 corpus seeds
+  "$repo/$fuzzer" -seed="${RUBBLE_FUZZ_SEED:-1}" -max_total_time="$seconds" -timeout=30 -rss_limit_mb=6144 -max_len=16384 \
+  -dict="$repo/fuzz/scene.dict" -print_final_stats=1 corpus seeds
