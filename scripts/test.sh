@@ -49,12 +49,12 @@ echo "== address + undefined-behaviour sanitizer build (clang, with the fuzz tar
 # clang, not GCC: on a 2-core machine the instrumented build took 701 s (1 520 s of CPU) with GCC
 # and 393 s (878 s) with clang, and the scene parser's fuzz target (scripts/fuzz.sh, libFuzzer:
 # clang only) is built in the same tree instead of a third build of every library (200 s); the
-# whole script 1 832 -> 1 359 s without the package installation (2026-11-29). The release build above stays
-# GCC, so both compilers' warnings are errors. The Python module is not built here: a sanitized
+# whole script 1 832 -> 1 359 s without the package installation (2026-11-29). The release build
+# above stays GCC, so both compilers' warnings are errors. The Python module is not built here: a sanitized
 # extension cannot be loaded by a plain /usr/bin/python3 without LD_PRELOAD of the sanitizer
 # runtimes (its tests ran in the release pass).
 # -O1 -g1 (line tables: reports still give file and line): the build compiles in less than half
-# the time of -O2 -g (tests/nlgs_solver/test_nlgs.cpp: 24 s against 52 s) and was the longest
+# the time of -O2 -g (GCC, tests/nlgs_solver/test_nlgs.cpp: 24 s against 52 s) and was the longest
 # part of CI; the test files compile at -O1 too (at -O0 their copies of the libraries' inline
 # code replaced the libraries' own at link time: tests/CMakeLists.txt). Executables labelled slow
 # are not built here (tests/CMakeLists.txt), nor the CUDA backend (no GPU to run it on a CI
