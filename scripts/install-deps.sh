@@ -21,7 +21,7 @@ packages=(
   # tests and benchmarks
   libgtest-dev libgmock-dev googletest libbenchmark-dev
   libsiconos-numerics-dev   # the reference FCLib solver (Siconos NSGS) for bench_siconos
-  clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes
+  clang libclang-rt-14-dev  # the sanitizer build of the test gate, libFuzzer, their runtimes
   clang-format clang-tidy   # the code style (.clang-format) and static checks (.clang-tidy)
   # post-processing and output checks in tests
   python3 python3-numpy python3-h5py python3-matplotlib python3-vtk9
