@@ -17,7 +17,8 @@
 
 namespace {
 
-/// Grains a generator table asks for (count, or cells_per_side cubed), as a double; 0 if unknown.
+/// Grains a generator or inflow table asks for (count, or cells_per_side cubed), as a double; 0 if
+/// unknown.
 double requested_grains(const toml::table& generator) {
   double grains = 0.0;
   if (const auto count = generator["count"].value<double>()) grains = std::max(grains, std::abs(*count));
@@ -39,13 +40,13 @@ bool too_many_grains(std::string_view text) {
   // a release build, 41 s and more under the fuzzer's instrumentation).
   double spheres = 0.0, polyhedra = 0.0;
   for (const char* section : {"generators", "inflow"}) {
-    const toml::array* generators = root[section].as_array();
-    if (generators == nullptr) continue;
-    for (const toml::node& node : *generators) {
-      const toml::table* generator = node.as_table();
-      if (generator == nullptr) continue;
-      const std::string_view shape = (*generator)["shape"].value_or(std::string_view("sphere"));
-      (shape == "sphere" ? spheres : polyhedra) += requested_grains(*generator);
+    const toml::array* entries = root[section].as_array();
+    if (entries == nullptr) continue;
+    for (const toml::node& node : *entries) {
+      const toml::table* entry = node.as_table();
+      if (entry == nullptr) continue;
+      const std::string_view shape = (*entry)["shape"].value_or(std::string_view("sphere"));
+      (shape == "sphere" ? spheres : polyhedra) += requested_grains(*entry);
     }
   }
   return spheres > 2e4 || polyhedra > 200;

@@ -8,7 +8,7 @@
 # usage: scripts/fuzz.sh [SECONDS]
 #   RUBBLE_FUZZ_BUILD=DIR  a clang sanitizer build configured with -DRUBBLE_BUILD_FUZZ=ON (CI's
 #                          build/sanitize): only the target is built there. Without it the script
-#                          configures build/fuzz with the libraries alone (no tests, benchmarks).
+#                          configures build/fuzz (scripts/configure-sanitizer.sh) without tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
@@ -19,19 +19,9 @@ if [ -n "${RUBBLE_FUZZ_BUILD:-}" ]; then
     { echo "fuzz.sh: $build is not a build configured with -DRUBBLE_BUILD_FUZZ=ON" >&2; exit 1; }
 else
   build=build/fuzz
-  # A build/fuzz of the former layout (fuzz/ as a project of its own) cannot be reconfigured
-  # from the top: start it again.
-  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$PWD\$" "$build/CMakeCache.txt"; then
-    rm -rf "$build"
-  fi
-  mkdir -p "$build"
-  # -O1 and line tables only: reports still name file and line, and it compiles a fifth faster
-  # than -O2 -g.
-  CXX=clang++ CC=clang cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-    -DRUBBLE_SANITIZE=address,undefined -DRUBBLE_BUILD_FUZZ=ON -DRUBBLE_BUILD_TESTS=OFF \
-    -DRUBBLE_BUILD_BENCH=OFF -DRUBBLE_BUILD_PYTHON=OFF -DRUBBLE_GRAVITY_CUDA=OFF > "$build/configure.log" 2>&1 ||
-    { cat "$build/configure.log"; exit 1; }
+  mkdir -p "$(dirname "$build")"
+  ./scripts/configure-sanitizer.sh "$build" -DRUBBLE_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 ||
+    { cat "$build.configure.log"; exit 1; }
 fi
 cmake --build "$build" --target fuzz_scene_parser -j "$(nproc)"
 fuzzer=$build/fuzz/fuzz_scene_parser

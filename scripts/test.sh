@@ -50,23 +50,12 @@ echo "== address + undefined-behaviour sanitizer build (clang, with the fuzz tar
 # and 393 s (878 s) with clang, and the scene parser's fuzz target (scripts/fuzz.sh, libFuzzer:
 # clang only) is built in the same tree instead of a third build of every library (200 s); the
 # whole script 1 832 -> 1 359 s without the package installation (2026-11-29). The release build
-# above stays GCC, so both compilers' warnings are errors. The Python module is not built here: a sanitized
-# extension cannot be loaded by a plain /usr/bin/python3 without LD_PRELOAD of the sanitizer
-# runtimes (its tests ran in the release pass).
-# -O1 -g1 (line tables: reports still give file and line): the build compiles in less than half
-# the time of -O2 -g (GCC, tests/nlgs_solver/test_nlgs.cpp: 24 s against 52 s) and was the longest
-# part of CI; the test files compile at -O1 too (at -O0 their copies of the libraries' inline
-# code replaced the libraries' own at link time: tests/CMakeLists.txt). Executables labelled slow
-# are not built here (tests/CMakeLists.txt), nor the CUDA backend (no GPU to run it on a CI
-# machine; the release build compiles it where nvcc exists).
-# A build/sanitize made by GCC (before 2026-11-29) keeps its compiler in the cache: start it again.
-if [ -f build/sanitize/CMakeCache.txt ] && ! grep -q '^CMAKE_CXX_COMPILER:FILEPATH=.*clang++' build/sanitize/CMakeCache.txt; then
-  rm -rf build/sanitize
-fi
-CXX=clang++ CC=clang cmake -S . -B build/sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRUBBLE_WERROR=ON \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-  -DRUBBLE_SANITIZE=address,undefined -DRUBBLE_BUILD_FUZZ=ON -DRUBBLE_BUILD_BENCH=OFF -DRUBBLE_BUILD_PYTHON=OFF \
-  -DRUBBLE_GRAVITY_CUDA=OFF
+# above stays GCC, so both compilers' warnings are errors. The flags and what is left out (the
+# Python module, whose tests ran in the release pass; the CUDA backend): configure-sanitizer.sh.
+# The test files compile at -O1 too (at -O0 their copies of the libraries' inline code replaced
+# the libraries' own at link time: tests/CMakeLists.txt); executables labelled slow are not built
+# here (tests/CMakeLists.txt).
+./scripts/configure-sanitizer.sh build/sanitize -DRUBBLE_WERROR=ON
 cmake --build build/sanitize -j "$jobs"
 echo "== tests under sanitizers (label 'slow' and the long polyhedron settling runs excluded) =="
 # Excluded here (they run in the release pass above): label 'slow' (long dynamics, accretion,
