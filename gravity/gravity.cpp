@@ -137,9 +137,26 @@ void validate(const GravityOptions& options, std::span<const double> positions, 
                        std::to_string(potential.size()));
 }
 
+FieldWorkspace::FieldWorkspace() = default;
+FieldWorkspace::~FieldWorkspace() = default;
+FieldWorkspace::FieldWorkspace(const FieldWorkspace&) {}
+FieldWorkspace::FieldWorkspace(FieldWorkspace&&) noexcept = default;
+FieldWorkspace& FieldWorkspace::operator=(const FieldWorkspace& other) {
+  if (this != &other) tree.reset();
+  return *this;
+}
+FieldWorkspace& FieldWorkspace::operator=(FieldWorkspace&&) noexcept = default;
+
 FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
                            std::span<const double> masses, std::span<double> accelerations,
                            std::span<double> potential) {
+  FieldWorkspace workspace;
+  return compute_field(options, positions, masses, accelerations, potential, workspace);
+}
+
+FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
+                           std::span<const double> masses, std::span<double> accelerations, std::span<double> potential,
+                           FieldWorkspace& workspace) {
   validate(options, positions, masses, accelerations, potential);
   require_backend(options);
   FieldTimings t;
@@ -157,9 +174,11 @@ FieldTimings compute_field(const GravityOptions& options, std::span<const double
     t.walk_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return t;
   }
-  Tree tree(options.leaf_size, options.group_size);
-  t.build_seconds = tree.build(positions, masses);
-  t.walk_seconds = tree.evaluate(options, accelerations, potential);
+  std::unique_ptr<Tree>& tree = workspace.tree;
+  if (!tree || tree->leaf_size() != options.leaf_size || tree->group_size() != options.group_size)
+    tree = std::make_unique<Tree>(options.leaf_size, options.group_size);
+  t.build_seconds = tree->build(positions, masses);
+  t.walk_seconds = tree->evaluate(options, accelerations, potential);
   return t;
 }
 

@@ -9,6 +9,7 @@
 //
 // eps = 0 unless Plummer softening is requested. See gravity/README.md for the tree algorithm.
 
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -120,6 +121,31 @@ void validate_particles(const GravityOptions& options, std::span<const double> p
 FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
                            std::span<const double> masses, std::span<double> accelerations,
                            std::span<double> potential);
+
+class Tree;
+
+/// Memory that compute_field keeps from one call to the next: the tree, its arrays and the scratch
+/// of its build and walk. A run that evaluates the field every step passes the same workspace to
+/// every call, and no call after the first asks the system for fresh pages: each new page is
+/// zeroed on first touch (~10 us in a virtual machine), about 2 000 of them (~85 bytes a particle)
+/// per evaluation at N = 10^5 otherwise, i.e. 20-25 ms against a 55-95 ms evaluation
+/// (bench/RESULTS.md, "Gravity: the tree's memory kept from call to call"). It changes no result.
+/// Scratch, not state: a copy starts empty. One workspace serves one call at a time.
+struct FieldWorkspace {
+  FieldWorkspace();
+  ~FieldWorkspace();
+  FieldWorkspace(const FieldWorkspace&);
+  FieldWorkspace(FieldWorkspace&&) noexcept;
+  FieldWorkspace& operator=(const FieldWorkspace&);
+  FieldWorkspace& operator=(FieldWorkspace&&) noexcept;
+  /// The tree of the last Method::tree evaluation on the CPU (gravity/tree.hpp); null before.
+  std::unique_ptr<Tree> tree;
+};
+
+/// compute_field, reusing `workspace`'s memory (see FieldWorkspace); the same results.
+FieldTimings compute_field(const GravityOptions& options, std::span<const double> positions,
+                           std::span<const double> masses, std::span<double> accelerations, std::span<double> potential,
+                           FieldWorkspace& workspace);
 
 /// Human-readable name of a method ("direct", "tree").
 std::string to_string(Method method);

@@ -37,11 +37,13 @@ constexpr std::size_t kParallelKeysMin = std::size_t{1} << 18;  // 262 144 parti
 /// kParallelKeysMin keys each pass runs on all threads: each counts the digits of its own
 /// contiguous slice, and scatters the slice to the offsets of its digits, after those of every
 /// smaller digit and of the same digit in the slices before its own. That is exactly where the
-/// serial stable pass puts each key, so the result is the same for any thread count.
-void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& idx) {
+/// serial stable pass puts each key, so the result is the same for any thread count. k2 and i2
+/// are the passes' second buffers (resized here).
+void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& idx, std::vector<std::uint64_t>& k2,
+                std::vector<std::uint32_t>& i2) {
   const std::size_t n = keys.size();
-  std::vector<std::uint64_t> k2(n);
-  std::vector<std::uint32_t> i2(n);
+  k2.resize(n);
+  i2.resize(n);
   const bool parallel = n >= kParallelKeysMin;
   const int slices = parallel ? omp_get_max_threads() : 1;
   // counts[s][d]: keys of slice s with digit d; then the first position of those keys.
@@ -105,15 +107,18 @@ inline double dist2_point_box(double px, double py, double pz, const std::array<
   return dx * dx + dy * dy + dz * dz;
 }
 
-/// The particles' Morton keys in a 21-bit grid over their bounding cube, sorted; `order` receives
-/// the permutation that sorts them (order[k] = index of the k-th particle along the curve).
-std::vector<std::uint64_t> sorted_morton_keys(std::span<const double> positions, std::vector<std::uint32_t>& order) {
+/// The particles' Morton keys in a 21-bit grid over their bounding cube, sorted, into `keys`;
+/// `order` receives the permutation that sorts them (order[k] = index of the k-th particle along
+/// the curve). sort_keys and sort_order: the radix sort's buffers.
+void sorted_morton_keys(std::span<const double> positions, std::vector<std::uint32_t>& order,
+                        std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& sort_keys,
+                        std::vector<std::uint32_t>& sort_order) {
   const std::size_t n = order.size();
   std::array<double, 3> lo{};
   double extent = 0;
   Tree::bounding_cube(positions, lo, extent);
   const double scale = extent > 0 ? morton::kCells / extent : 0.0;
-  std::vector<std::uint64_t> keys(n);
+  keys.resize(n);
   const auto sn = static_cast<std::ptrdiff_t>(n);
 #pragma omp parallel for schedule(static) if (n >= kParallelKeysMin)
   for (std::ptrdiff_t s = 0; s < sn; ++s) {
@@ -121,8 +126,7 @@ std::vector<std::uint64_t> sorted_morton_keys(std::span<const double> positions,
     keys[i] = morton::key(&positions[3 * i], lo.data(), scale);
     order[i] = static_cast<std::uint32_t>(i);
   }
-  radix_sort(keys, order);
-  return keys;
+  radix_sort(keys, order, sort_keys, sort_order);
 }
 
 /// Sets a node's centre of mass from its mass m and first moments (sx, sy, sz) (the box centre
@@ -176,14 +180,6 @@ struct Tree::InteractionLists {
 struct Tree::ListUnits {
   double ox = 0, oy = 0, oz = 0;
   double inv_length = 1, inv_mass = 1, inv_moment = 1;
-};
-
-struct Tree::WalkNode {
-  double cx, cy, cz;  // centre of mass
-  double r_open2;     // squared opening radius max(l / theta + delta, b_max)^2
-  double mass;
-  std::uint32_t begin, count;
-  std::int32_t first_child, num_children;
 };
 
 void Tree::bounding_cube(std::span<const double> positions, std::array<double, 3>& lo, double& extent) {
@@ -241,9 +237,9 @@ double Tree::build(std::span<const double> positions, std::span<const double> ma
     x_.clear(), y_.clear(), z_.clear(), m_.clear();
     return seconds_since(t0);
   }
-  const std::vector<std::uint64_t> keys = sorted_morton_keys(positions, order_);
+  sorted_morton_keys(positions, order_, keys_, sort_keys_, sort_order_);
   load_particles(positions, masses);
-  build_nodes(keys);
+  build_nodes(keys_);
   second_moments_.resize(nodes_.size());
   compute_moments();
   collect_groups();
@@ -467,7 +463,8 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
   // the box centre. The b_max term keeps every target strictly outside the sphere holding the
   // node's particles (the expansion converges and a node never approximates a target's own mass,
   // even for theta >= 1).
-  std::vector<WalkNode> walk(nodes_.size());
+  std::vector<WalkNode>& walk = walk_;
+  walk.resize(nodes_.size());
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const Node& nd = nodes_[i];
     walk[i] = {nd.cx,    nd.cy,          nd.cz,          opening_radius2(nd, inv_theta), nd.mass, nd.begin,

@@ -61,6 +61,11 @@ class Tree {
   /// leaf_size: max particles per leaf (>= 1); group_size: max targets per walk group (>= 1).
   explicit Tree(int leaf_size = 16, int group_size = 64);
 
+  /// Max particles per leaf, as constructed.
+  int leaf_size() const { return leaf_size_; }
+  /// Max targets per walk group, as constructed.
+  int group_size() const { return group_size_; }
+
   /// Builds the tree (Morton keys, stable radix sort, nodes, moments). positions: 3N, masses: N,
   /// both finite, masses >= 0. Returns the wall-clock seconds spent. Throws GravityError.
   double build(std::span<const double> positions, std::span<const double> masses);
@@ -128,9 +133,14 @@ class Tree {
   struct InteractionLists;
   /// How gathered values are stored in the lists (defined in tree.cpp).
   struct ListUnits;
-  /// What the walk reads of a node, packed, with the opening radius of this evaluation's theta
-  /// (defined in tree.cpp).
-  struct WalkNode;
+  /// What the walk reads of a node, packed, with the opening radius of this evaluation's theta.
+  struct WalkNode {
+    double cx, cy, cz;  // centre of mass
+    double r_open2;     // squared opening radius max(l / theta + delta, b_max)^2
+    double mass;
+    std::uint32_t begin, count;
+    std::int32_t first_child, num_children;
+  };
   /// Walks the tree (walk: one entry per node) for group g: fills lists with the particles and the
   /// monopole or quadrupole cells that act on its targets, in `units`; stack is the walk's scratch.
   template <typename Real, bool kQuadrupole>
@@ -141,6 +151,11 @@ class Tree {
   template <typename Real>
   void evaluate_group(const Group& g, const InteractionLists<Real>& lists, const ListUnits& units, double eps, double G,
                       std::span<double> accelerations, std::span<double> potential) const;
+  // Scratch of build() and evaluate(), members only so that a tree built again and again (one per
+  // run: FieldWorkspace) reuses their memory instead of faulting in fresh pages every time.
+  std::vector<std::uint64_t> keys_, sort_keys_;  // Morton keys (sorted), the radix sort's buffer
+  std::vector<std::uint32_t> sort_order_;        // the radix sort's buffer for order_
+  mutable std::vector<WalkNode> walk_;           // evaluate(): the nodes as the walk reads them
   mutable Stats stats_;
 };
 

@@ -5,22 +5,27 @@
 namespace rubble {
 namespace {
 
-/// Self-gravity acceleration of every body (zero for fixed bodies): point masses at the grains'
-/// centres of mass (the LMGC90 accretion paper, sec. 2.3), by direct sum or tree. Returns the potential energy of the
-/// grains, 1/2 sum m_i phi_i, from the same evaluation.
+/// Self-gravity acceleration of every body (zero for fixed bodies) into acceleration_out: point
+/// masses at the grains' centres of mass (the LMGC90 accretion paper, sec. 2.3), by direct sum or
+/// tree. Returns the potential energy of the grains, 1/2 sum m_i phi_i, from the same evaluation.
 double self_gravity_accelerations(const Model& model, const State& state, const gravity::GravityOptions& options,
-                                  std::vector<Vec3>& acceleration_out) {
-  std::vector<std::size_t> grains;
+                                  SelfGravityWorkspace& scratch, std::vector<Vec3>& acceleration_out) {
+  std::vector<std::size_t>& grains = scratch.grains;
+  grains.clear();
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_fixed(b)) grains.push_back(b);
   }
-  std::vector<double> positions(3 * grains.size()), masses(grains.size());
+  std::vector<double>&positions = scratch.positions, &masses = scratch.masses;
+  positions.resize(3 * grains.size());
+  masses.resize(grains.size());
   for (std::size_t k = 0; k < grains.size(); ++k) {
     for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
     masses[k] = model.mass[grains[k]];
   }
-  std::vector<double> acceleration(3 * grains.size()), potential(grains.size());
-  gravity::compute_field(options, positions, masses, acceleration, potential);
+  std::vector<double>&acceleration = scratch.acceleration, &potential = scratch.potential;
+  acceleration.resize(3 * grains.size());
+  potential.resize(grains.size());
+  gravity::compute_field(options, positions, masses, acceleration, potential, scratch.field);
   acceleration_out.assign(model.body_count(), Vec3::Zero());
   double energy = 0.0;
   for (std::size_t k = 0; k < grains.size(); ++k) {
@@ -41,12 +46,13 @@ Vec3 central_acceleration(const CentralField& field, const Vec3& position) {
 
 double gravitational_potential_energy(const Model& model, const State& state, const GravitySettings& gravity) {
   if (gravity.kind == GravitySettings::Kind::self) {
-    std::vector<Vec3> unused;
-    return self_gravity_accelerations(model, state, gravity.self_gravity, unused);
+    SelfGravityWorkspace scratch;
+    return self_gravity_accelerations(model, state, gravity.self_gravity, scratch, scratch.acceleration_per_body);
   }
-  StepCarry scratch;
+  StepCarry carry;
+  SelfGravityWorkspace scratch;
   std::vector<Vec3> force;
-  return compute_external_forces(model, state, gravity, scratch, force).value_or(0.0);
+  return compute_external_forces(model, state, gravity, carry, scratch, force).value_or(0.0);
 }
 
 // With evaluate_every = k > 1 the self-gravity field is evaluated at the midpoints of steps
@@ -57,7 +63,8 @@ double gravitational_potential_energy(const Model& model, const State& state, co
 // symplectic split). It pays where the field changes slowly against the contact time step: a
 // cloud's free-fall time is ~1/sqrt(G rho) while h is set by grain travel per step.
 std::optional<double> compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
-                                              StepCarry& carry, std::vector<Vec3>& force) {
+                                              StepCarry& carry, SelfGravityWorkspace& scratch,
+                                              std::vector<Vec3>& force) {
   force.assign(model.body_count(), Vec3::Zero());
   double potential = 0.0;
   switch (gravity.kind) {
@@ -83,8 +90,8 @@ std::optional<double> compute_external_forces(const Model& model, const State& s
         // Every step: no field is held (and a checkpoint carries none).
         carry.held_gravity.clear();
         carry.held_gravity_step = -1;
-        std::vector<Vec3> acceleration;
-        potential = self_gravity_accelerations(model, state, gravity.self_gravity, acceleration);
+        std::vector<Vec3>& acceleration = scratch.acceleration_per_body;
+        potential = self_gravity_accelerations(model, state, gravity.self_gravity, scratch, acceleration);
         for (std::size_t b = 0; b < model.body_count(); ++b) {
           if (!model.is_fixed(b)) force[b] = model.mass[b] * acceleration[b];
         }
@@ -95,7 +102,7 @@ std::optional<double> compute_external_forces(const Model& model, const State& s
                          state.step - carry.held_gravity_step >= gravity.evaluate_every;
       std::optional<double> evaluated;
       if (stale) {
-        evaluated = self_gravity_accelerations(model, state, gravity.self_gravity, carry.held_gravity);
+        evaluated = self_gravity_accelerations(model, state, gravity.self_gravity, scratch, carry.held_gravity);
         carry.held_gravity_step = state.step;
       }
       for (std::size_t b = 0; b < model.body_count(); ++b) {

@@ -41,13 +41,28 @@ struct GravitySettings {
   int evaluate_every = 1;
 };
 
+/// Self-gravity's scratch arrays, kept from step to step only so that their memory is reused: the
+/// grains' positions and masses as the gravity library takes them, the field it returns, and the
+/// tree's own memory (gravity::FieldWorkspace). Not state: a checkpoint saves none of it.
+struct SelfGravityWorkspace {
+  std::vector<std::size_t> grains;          ///< the bodies that feel self-gravity (not fixed), in body order
+  std::vector<double> positions;            ///< 3 per grain, m
+  std::vector<double> masses;               ///< per grain, kg
+  std::vector<double> acceleration;         ///< 3 per grain, m/s^2
+  std::vector<double> potential;            ///< per grain, J/kg
+  std::vector<Vec3> acceleration_per_body;  ///< m/s^2, zero for fixed bodies
+  gravity::FieldWorkspace field;            ///< the tree's memory
+};
+
 /// The external force on every body at `state` (taken at the midpoint configuration q_m by the
 /// step) into `force` (walls and other fixed bodies get none). With evaluate_every = k > 1 the
 /// self-gravity field is evaluated at the midpoints of steps n, n+k, ... and held in between in
 /// `carry.held_gravity`. Returns the grains' gravitational potential energy at `state`, or
 /// nothing when a held self-gravity field was used (it was evaluated at an earlier step).
+/// `scratch`: self-gravity's arrays, reused from call to call.
 std::optional<double> compute_external_forces(const Model& model, const State& state, const GravitySettings& gravity,
-                                              StepCarry& carry, std::vector<Vec3>& force);
+                                              StepCarry& carry, SelfGravityWorkspace& scratch,
+                                              std::vector<Vec3>& force);
 
 /// Work of the forces `force` over the displacement `scale` * `velocity` of every grain, J
 /// (0 when `velocity` is empty).

@@ -67,7 +67,7 @@ StepReport step(const Model& model, State& state, StepWorkspace& workspace, cons
 
   // 2. external_forces: gravity (uniform, central, or self-gravity, possibly held) at q_m.
   const std::optional<double> potential_at_midpoint =
-      compute_external_forces(model, state, options.gravity, workspace.carry, workspace.force);
+      compute_external_forces(model, state, options.gravity, workspace.carry, workspace.self_gravity, workspace.force);
   // Work of these forces from q_n to q_m (for the energy monitor when the field is held).
   const double work_to_midpoint =
       work_of_forces(model, workspace.force, state.velocity, (1.0 - integrator.theta) * integrator.time_step);

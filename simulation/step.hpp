@@ -64,6 +64,7 @@ struct StepWorkspace {
   std::vector<Vec3> force;               ///< scratch: external force per body
   BodyVelocities velocity;               ///< scratch: free, then end-of-step velocities
   BodyVelocities displacement_velocity;  ///< scratch: the overlap recovery's pseudo-velocities (often empty)
+  SelfGravityWorkspace self_gravity;     ///< scratch: self-gravity's arrays and tree
 };
 
 /// Advances `state` by one step of the Moreau-Jean theta-method in Moreau's midpoint form

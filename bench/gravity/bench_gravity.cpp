@@ -4,11 +4,16 @@
 //                 [--threads 1,2] [--reps 3] [--dist uniform|plummer] [--subset 1000]
 //                 [--csv FILE] [--direct-rate] [--leaf-size 16] [--group-size 64]
 //                 [--precision double,single] [--backend cpu,cuda] [--write-reference DIR]
+//                 [--fresh-workspace]
 //
 // Each tree figure is the best of --reps evaluations (tree build included), as wall-clock seconds
 // and as process CPU seconds (all threads; on a loaded machine the latter measures the work). Errors are the
 // per-particle |a_tree - a_direct| / |a_direct| against the exact direct sum over all targets
 // (N <= 100000) or over --subset random targets (larger N).
+//
+// The reps of a row share one gravity::FieldWorkspace, as a run's steps do: the best of 2 or more
+// reps is a call that reuses the tree's memory. --fresh-workspace gives every rep a new one (a
+// caller that keeps none: every call faults in the tree's pages).
 //
 // --write-reference DIR: for each N, DIR/DIST-N.bin holds the particles, the error targets and the
 // exact direct-sum accelerations on them (layout in write_reference), so that another code's tree
@@ -125,6 +130,7 @@ struct Arguments {
   std::size_t subset = 1000;
   std::string dist = "uniform", csv_path, reference_dir;
   bool direct_rate = false;
+  bool fresh_workspace = false;
   std::vector<g::KernelPrecision> precisions{g::KernelPrecision::double_precision};
   std::vector<g::Backend> backends{g::Backend::cpu};
 };
@@ -163,6 +169,8 @@ Arguments parse_arguments(int argc, char** argv) {
       args.csv_path = next();
     else if (arg == "--write-reference")
       args.reference_dir = next();
+    else if (arg == "--fresh-workspace")
+      args.fresh_workspace = true;
     else if (arg == "--direct-rate")
       args.direct_rate = true;
     else if (arg == "--precision")
@@ -265,9 +273,13 @@ void run_tree_row(const Arguments& args, const g::GravityOptions& o, int threads
   omp_set_num_threads(threads);
   if (o.backend == g::Backend::cuda) g::compute_field(o, pos, mass, acc, pot);  // warm-up: CUDA context
   double best = 1e300, bb = 0, bw = 0, bt = 0, best_cpu = 1e300;
+  // One workspace for the reps, as a run keeps one from step to step: the first rep faults in the
+  // tree's memory, the others reuse it (the best of reps is a warm one when reps >= 2).
+  g::FieldWorkspace workspace;
   for (int r = 0; r < args.reps; ++r) {
+    if (args.fresh_workspace) workspace = g::FieldWorkspace{};
     const double t0 = now(), c0 = cpu_now();
-    const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot);
+    const g::FieldTimings ft = g::compute_field(o, pos, mass, acc, pot, workspace);
     const double dt = now() - t0;
     best_cpu = std::min(best_cpu, cpu_now() - c0);
     if (dt < best) best = dt, bb = ft.build_seconds, bw = ft.walk_seconds, bt = ft.transfer_seconds;

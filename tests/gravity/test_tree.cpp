@@ -305,6 +305,49 @@ TEST(Tree, ParallelBuildIsTheSameForAnyThreadCount) {
   omp_set_num_threads(saved);
 }
 
+// A FieldWorkspace only keeps memory: a sequence of calls through one workspace, with N growing
+// and shrinking, other orders, precisions, leaf and group sizes, a direct sum between them and a
+// copy of the workspace, gives the bits of the same calls each with a fresh one.
+TEST(Tree, WorkspaceReusedGivesTheBitsOfFreshCalls) {
+  const Particles big = g::testing::plummer_sphere(6000 / kScale, 1.0, 1.0, 57);
+  const Particles small = g::testing::uniform_sphere(700 / kScale, 2.0, 3.0, 58);
+  struct Call {
+    const Particles* particles;
+    g::GravityOptions options;
+  };
+  std::vector<Call> calls;
+  for (const Particles* p : {&big, &small, &big}) {
+    for (int order : {1, 2}) calls.push_back({p, tree_options(0.6, order)});
+  }
+  calls.push_back({&small, tree_options(0.4, 2)});
+  calls.back().options.precision = g::KernelPrecision::single_precision;
+  calls.push_back({&big, tree_options(0.7, 1)});
+  calls.back().options.leaf_size = 4;
+  calls.back().options.group_size = 16;
+  calls.push_back({&small, tree_options(0.5, 2)});
+  calls.back().options.method = g::Method::direct;
+  calls.push_back({&big, tree_options(0.5, 2)});
+  g::FieldWorkspace workspace;
+  for (std::size_t k = 0; k < calls.size(); ++k) {
+    const Particles& p = *calls[k].particles;
+    const g::GravityOptions& o = calls[k].options;
+    std::vector<double> fresh_phi(p.size()), reused_phi(p.size());
+    const std::vector<double> fresh = field(o, p, &fresh_phi);
+    std::vector<double> reused(3 * p.size());
+    g::compute_field(o, p.pos, p.mass, reused, reused_phi, workspace);
+    ASSERT_EQ(reused.size(), fresh.size());
+    EXPECT_EQ(std::memcmp(reused.data(), fresh.data(), fresh.size() * sizeof(double)), 0) << "call " << k;
+    EXPECT_EQ(std::memcmp(reused_phi.data(), fresh_phi.data(), fresh_phi.size() * sizeof(double)), 0) << "call " << k;
+    if (k == 3) {  // a copy starts empty and still computes the same field
+      g::FieldWorkspace copy = workspace;
+      EXPECT_EQ(copy.tree, nullptr);
+      EXPECT_NE(workspace.tree, nullptr);
+      g::compute_field(o, p.pos, p.mass, reused, reused_phi, copy);
+      EXPECT_EQ(std::memcmp(reused.data(), fresh.data(), fresh.size() * sizeof(double)), 0) << "copy";
+    }
+  }
+}
+
 TEST(Tree, SmallAndDegenerateInputs) {
   std::vector<double> a, phi;
   // N = 0 and N = 1.
