@@ -38,7 +38,7 @@ void check_rotation_resistance_shapes(const SceneDraft& draft) {
   for (const auto* grains : {&draft.grains, &draft.inflow_grains}) {  // the [[inflow]] grains touch too
     for (const GrainSpec& g : *grains) {
       touches[static_cast<std::size_t>(g.material)] = true;
-      if (g.polyhedron) polyhedra[static_cast<std::size_t>(g.material)] = true;
+      if (g.is_polyhedron()) polyhedra[static_cast<std::size_t>(g.material)] = true;
     }
   }
   for (const WallSpec& w : draft.walls) touches[static_cast<std::size_t>(w.material)] = true;

@@ -1,5 +1,6 @@
 // Scene files: parse_scene reads the sections in a fixed order (the order decides which problem of
-// a file with several is reported), checks the scene as a whole, then makes the bodies. The pieces
+// a file with several is reported), checks what needs only the grains' materials and kinds, makes
+// the generated polyhedra, checks the geometry, then makes the bodies. The pieces
 // live in files of their own (simulation/README.md): reading TOML (scene_reader), the sections
 // (scene_sections, scene_materials, scene_bodies, scene_generators), the checks (scene_checks),
 // the writer (scene_writer) and the built-in scenes (scene_defaults).
@@ -132,6 +133,8 @@ Scene parse(const std::string& file, const toml::table& root, const std::string&
   check_contact_law_coverage(draft);
   check_rotation_resistance_shapes(draft);
   check_walls_have_an_inside(draft);
+  make_polyhedra(draft);
+  finish_inflows(draft);
   check_grains_inside_walls(draft);
   check_grains_do_not_overlap(draft);
   build(draft);

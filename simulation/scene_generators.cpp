@@ -81,7 +81,7 @@ SizeRange parse_sizes(const TableReader& entry) {
 void check_memory(const SceneDraft& draft, const TableReader& entry, std::string_view key, std::uint64_t count,
                   bool polyhedra) {
   std::uint64_t spheres = 0, polyhedron_grains = 0;
-  for (const GrainSpec& grain : draft.grains) ++(grain.polyhedron ? polyhedron_grains : spheres);
+  for (const GrainSpec& grain : draft.grains) ++(grain.is_polyhedron() ? polyhedron_grains : spheres);
   (polyhedra ? polyhedron_grains : spheres) += count;
   const std::string shortfall = memory_shortfall(spheres, polyhedron_grains);
   if (!shortfall.empty()) entry.fail_key(key, shortfall);
@@ -177,52 +177,52 @@ std::vector<PackedGrain> pack_sphere_cloud(const GeneratorEntry& g) {
 struct GrainRecipe {
   int material = 0;
   Vec3 velocity = Vec3::Zero();
-  bool polyhedra = false;  ///< shape is "polyhedron" or "mix": the grains are made in parallel
-  RandomPolyhedronOptions polyhedron_options;
+  int polyhedron_recipe = -1;        ///< index into SceneDraft::polyhedron_recipes (shape "polyhedron" or "mix")
   double polyhedron_fraction = 0.0;  ///< probability that a grain is a polyhedron
 };
 
-/// The grains of generator `index` from its packing: spheres, or polyhedra inscribed in the
-/// packed balls with probability `recipe.polyhedron_fraction`.
+/// The grains of generator `index` from its packing: spheres, or (with probability
+/// `recipe.polyhedron_fraction`) polyhedra to inscribe in the packed balls, made later
+/// (make_polyhedra).
 std::vector<GrainSpec> generator_grains(const TableReader& entry, std::size_t index,
                                         const std::vector<PackedGrain>& packed, const GrainRecipe& recipe,
                                         std::uint64_t seed) {
-  const int material = recipe.material;
-  const Vec3& velocity = recipe.velocity;
-  const RandomPolyhedronOptions& polyhedron_options = recipe.polyhedron_options;
-  const double polyhedron_fraction = recipe.polyhedron_fraction;
   // Per grain, its own seed: whether it is a polyhedron, its shape and its orientation do not
   // depend on the other grains, so grains can be made in parallel and in any order.
   const std::uint64_t shape_stream = derive_seed(seed, 0x5348415045ULL);
   std::vector<GrainSpec> made(packed.size());
-  std::string failure;
-#pragma omp parallel for schedule(dynamic, 64) if (recipe.polyhedra && packed.size() > 256)
   for (std::size_t k = 0; k < packed.size(); ++k) {
     GrainSpec& grain = made[k];
     grain.radius = packed[k].radius;
     grain.position = packed[k].position;
-    grain.velocity = velocity;
-    grain.material = material;
+    grain.velocity = recipe.velocity;
+    grain.material = recipe.material;
     grain.origin.generator = static_cast<int>(index);
     grain.origin.ordinal = k;
     grain.origin.node = entry.anchor();
-    if (polyhedron_fraction <= 0.0) continue;
-    const std::uint64_t grain_seed = derive_seed(shape_stream, k);
-    std::mt19937_64 rng(grain_seed);
-    if (uniform_01(rng) >= polyhedron_fraction) continue;
-    try {
-      PlacedPolyhedron placed = random_polyhedron_in_ball(packed[k], polyhedron_options, rng());
-      grain.position = placed.position;
-      grain.orientation = placed.orientation;
-      grain.radius = placed.shape.bounding_radius;
-      grain.polyhedron = std::make_shared<const ConvexPolyhedron>(std::move(placed.shape));
-    } catch (const std::exception& error) {
-#pragma omp critical(rubble_scene_polyhedra)
-      if (failure.empty()) failure = "grain " + std::to_string(k) + ": cannot make its polyhedron: " + error.what();
-    }
+    if (recipe.polyhedron_fraction <= 0.0) continue;
+    std::mt19937_64 rng(derive_seed(shape_stream, k));
+    if (uniform_01(rng) >= recipe.polyhedron_fraction) continue;
+    grain.pending_recipe = recipe.polyhedron_recipe;
+    grain.shape_seed = rng();
   }
-  if (!failure.empty()) entry.fail_table(failure);
   return made;
+}
+
+/// The recipe of a generator or inflow entry of this shape: material, velocity, the share of
+/// polyhedra and, for those, the shape options (registered in draft.polyhedron_recipes).
+GrainRecipe parse_grain_recipe(SceneDraft& draft, const TableReader& entry, const std::string& shape,
+                               const Vec3& velocity) {
+  GrainRecipe recipe;
+  recipe.material = material_of(draft, entry);
+  recipe.velocity = velocity;
+  recipe.polyhedron_fraction = shape == "polyhedron" ? 1.0 : 0.0;
+  if (shape != "sphere") {
+    recipe.polyhedron_recipe = static_cast<int>(draft.polyhedron_recipes.size());
+    draft.polyhedron_recipes.push_back({entry, parse_random_polyhedron_options(entry)});
+  }
+  if (shape == "mix") recipe.polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
+  return recipe;
 }
 
 /// The box of an entry's region_min/region_max (centres), region_max > region_min on every axis.
@@ -250,19 +250,15 @@ std::vector<GrainSpec> inflow_grains(const TableReader& entry, std::size_t index
 
 /// Grains per second: `rate`, or `mass_rate` (kg/s) over the mean mass of the inflow's own grains
 /// (density x volume), so that the grains' mass enters at mass_rate on average.
-double inflow_rate(const SceneDraft& draft, const TableReader& entry, const std::vector<GrainSpec>& grains) {
-  if (entry.has("rate") == entry.has("mass_rate")) {
-    entry.fail_table("expected exactly one of rate (grains per second) and mass_rate (kg/s)");
-  }
-  if (entry.has("rate")) return entry.number("rate", positive());
-  const double mass_rate = entry.number("mass_rate", positive());
+double inflow_rate(const SceneDraft& draft, double mass_rate, const GrainSpec* grains, std::size_t count) {
   double mass = 0.0;
-  for (const GrainSpec& grain : grains) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const GrainSpec& grain = grains[k];
     const double density = draft.scene.model.materials[static_cast<std::size_t>(grain.material)].density;
     mass += density * (grain.polyhedron ? grain.polyhedron->volume
                                         : 4.0 / 3.0 * std::numbers::pi * grain.radius * grain.radius * grain.radius);
   }
-  return mass_rate * static_cast<double>(grains.size()) / mass;
+  return mass_rate * static_cast<double>(count) / mass;
 }
 
 }  // namespace
@@ -271,7 +267,6 @@ void parse_inflows(SceneDraft& draft) {
   const auto entries = draft.root.tables("inflow");
   // A stream of its own, so that adding an inflow changes no generator's grains.
   const std::uint64_t inflow_seed = derive_seed(draft.scene.run.seed, 0x494E464C4F57ULL);
-  std::vector<std::vector<GrainSpec>> made(entries.size());
   for (std::size_t index = 0; index < entries.size(); ++index) {
     const TableReader& entry = entries[index];
     const std::string shape = entry.optional_choice("shape", {"sphere", "polyhedron", "mix"}).value_or("sphere");
@@ -287,28 +282,77 @@ void parse_inflows(SceneDraft& draft) {
     inflow.velocity = entry.vec3_or("velocity", Vec3::Zero());
     inflow.seed = derive_seed(inflow_seed, index);
     const SizeRange sizes = parse_sizes(entry);
-    GrainRecipe recipe;
-    recipe.material = material_of(draft, entry);
-    recipe.velocity = inflow.velocity;
-    recipe.polyhedra = shape != "sphere";
-    recipe.polyhedron_fraction = shape == "polyhedron" ? 1.0 : 0.0;
-    if (shape != "sphere") recipe.polyhedron_options = parse_random_polyhedron_options(entry);
-    if (shape == "mix") recipe.polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
-    made[index] = inflow_grains(entry, index, inflow.count, sizes, recipe, inflow.seed);
-    inflow.rate = inflow_rate(draft, entry, made[index]);
-    for (std::uint64_t k = 0; k < inflow.count; ++k) {
-      draft.scene.inflow.grains.push_back(
-          {static_cast<int>(index), k, inflow.start_time + static_cast<double>(k) / inflow.rate});
+    const GrainRecipe recipe = parse_grain_recipe(draft, entry, shape, inflow.velocity);
+    if (entry.has("rate") == entry.has("mass_rate")) {
+      entry.fail_table("expected exactly one of rate (grains per second) and mass_rate (kg/s)");
+    }
+    inflow.rate = entry.has("rate") ? entry.number("rate", positive()) : 0.0;  // mass_rate: finish_inflows
+    draft.inflow_mass_rates.push_back(entry.has("mass_rate") ? entry.number("mass_rate", positive()) : 0.0);
+    draft.inflow_first_grain.push_back(draft.inflow_grains.size());
+    for (GrainSpec& grain : inflow_grains(entry, index, inflow.count, sizes, recipe, inflow.seed)) {
+      draft.inflow_grains.push_back(std::move(grain));
     }
     draft.scene.inflow.inflows.push_back(inflow);
   }
-  // Bodies in order of due time (ties: file order, then number), so that those in play are a prefix.
+}
+
+void finish_inflows(SceneDraft& draft) {
+  std::vector<Inflow>& inflows = draft.scene.inflow.inflows;
   std::vector<InflowGrain>& order = draft.scene.inflow.grains;
+  for (std::size_t index = 0; index < inflows.size(); ++index) {
+    Inflow& inflow = inflows[index];
+    if (draft.inflow_mass_rates[index] > 0.0) {
+      inflow.rate = inflow_rate(draft, draft.inflow_mass_rates[index],
+                                draft.inflow_grains.data() + draft.inflow_first_grain[index], inflow.count);
+    }
+    for (std::uint64_t k = 0; k < inflow.count; ++k) {
+      order.push_back({static_cast<int>(index), k, inflow.start_time + static_cast<double>(k) / inflow.rate});
+    }
+  }
+  // Bodies in order of due time (ties: file order, then number), so that those in play are a prefix.
   std::stable_sort(order.begin(), order.end(),
                    [](const InflowGrain& a, const InflowGrain& b) { return a.due_time < b.due_time; });
+  std::vector<GrainSpec> sorted;
+  sorted.reserve(order.size());
   for (const InflowGrain& grain : order) {
-    draft.inflow_grains.push_back(made[static_cast<std::size_t>(grain.inflow)][grain.ordinal]);
+    sorted.push_back(std::move(
+        draft.inflow_grains[draft.inflow_first_grain[static_cast<std::size_t>(grain.inflow)] + grain.ordinal]));
   }
+  draft.inflow_grains = std::move(sorted);
+}
+
+void make_polyhedra(SceneDraft& draft) {
+  std::vector<GrainSpec*> pending;
+  for (auto* grains : {&draft.grains, &draft.inflow_grains}) {
+    for (GrainSpec& grain : *grains) {
+      if (grain.pending_recipe >= 0) pending.push_back(&grain);
+    }
+  }
+  std::vector<std::string> failure(pending.size());
+  const auto count = static_cast<std::ptrdiff_t>(pending.size());
+#pragma omp parallel for schedule(dynamic, 64) if (count > 256)
+  for (std::ptrdiff_t k = 0; k < count; ++k) {
+    GrainSpec& grain = *pending[static_cast<std::size_t>(k)];
+    const RandomPolyhedronOptions& options =
+        draft.polyhedron_recipes[static_cast<std::size_t>(grain.pending_recipe)].options;
+    try {
+      PlacedPolyhedron placed = random_polyhedron_in_ball({grain.position, grain.radius}, options, grain.shape_seed);
+      grain.position = placed.position;
+      grain.orientation = placed.orientation;
+      grain.radius = placed.shape.bounding_radius;
+      grain.polyhedron = std::make_shared<const ConvexPolyhedron>(std::move(placed.shape));
+    } catch (const std::exception& error) {
+      failure[static_cast<std::size_t>(k)] = error.what();
+    }
+  }
+  for (std::size_t k = 0; k < pending.size(); ++k) {
+    const GrainSpec& grain = *pending[k];
+    if (!failure[k].empty()) {
+      draft.polyhedron_recipes[static_cast<std::size_t>(grain.pending_recipe)].entry.fail_table(
+          "grain " + std::to_string(grain.origin.ordinal) + ": cannot make its polyhedron: " + failure[k]);
+    }
+  }
+  for (GrainSpec* grain : pending) grain->pending_recipe = -1;
 }
 
 void parse_generators(SceneDraft& draft) {
@@ -333,13 +377,7 @@ void parse_generators(SceneDraft& draft) {
       // Options are checked above; anything left is still reported against the generator.
       entry.fail_table(error.what());
     }
-    GrainRecipe recipe;
-    recipe.material = material_of(draft, entry);
-    recipe.velocity = entry.vec3_or("velocity", Vec3::Zero());
-    recipe.polyhedra = shape != "sphere";
-    recipe.polyhedron_fraction = shape == "polyhedron" ? 1.0 : 0.0;
-    if (shape != "sphere") recipe.polyhedron_options = parse_random_polyhedron_options(entry);
-    if (shape == "mix") recipe.polyhedron_fraction = entry.number("polyhedron_fraction", closed(0.0, 1.0));
+    const GrainRecipe recipe = parse_grain_recipe(draft, entry, shape, entry.vec3_or("velocity", Vec3::Zero()));
     const std::vector<GrainSpec> made = generator_grains(entry, index, packed, recipe, generator.seed);
     for (const GrainSpec& grain : made) add_grain(draft, grain);
   }

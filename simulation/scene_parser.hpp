@@ -42,6 +42,12 @@ struct GrainSpec {
   Vec3 angular_velocity = Vec3::Zero();
   int motion = -1;  ///< index into the parser's prescribed motions for a driven grain, else -1
   GrainOrigin origin{};
+  /// A generated polyhedron not made yet: index into SceneDraft::polyhedron_recipes, else -1.
+  /// Until make_polyhedra makes it, radius and position are those of the ball it is inscribed in.
+  int pending_recipe = -1;
+  std::uint64_t shape_seed = 0;  ///< the pending polyhedron's seed
+  /// A polyhedron grain, made or still to make.
+  bool is_polyhedron() const { return polyhedron != nullptr || pending_recipe >= 0; }
 };
 
 /// A wall to add.
@@ -81,8 +87,18 @@ struct SceneDraft {
   std::vector<PrescribedMotion> grain_motions;     ///< of the driven [[bodies]]
   std::vector<const toml::node*> condition_nodes;  ///< of the [[initial_conditions]] entries
   /// The [[inflow]] grains (shape, size, material), in order of due time (scene.inflow.grains):
-  /// the model's last bodies, placed during the run.
+  /// the model's last bodies, placed during the run. Until finish_inflows, in file order (each
+  /// inflow's grains from inflow_first_grain[i], by number).
   std::vector<GrainSpec> inflow_grains;
+  std::vector<std::size_t> inflow_first_grain;  ///< per [[inflow]] entry, until finish_inflows
+  std::vector<double> inflow_mass_rates;        ///< per [[inflow]] entry: mass_rate (kg/s), 0 when given a rate
+  /// How the generators' and inflows' polyhedra are made (GrainSpec::pending_recipe): the shape
+  /// options, and the entry a failure is reported on.
+  struct PolyhedronRecipe {
+    TableReader entry;
+    RandomPolyhedronOptions options;
+  };
+  std::vector<PolyhedronRecipe> polyhedron_recipes;
 };
 
 // scene_sections.cpp: [time], [solver], [detection], [gravity], [output].
@@ -114,6 +130,13 @@ void add_grain(SceneDraft& draft, const GrainSpec& grain);
 // during the run: simulation/inflow.hpp).
 void parse_generators(SceneDraft& draft);
 void parse_inflows(SceneDraft& draft);
+/// The generators' and inflows' random polyhedra (CGAL hulls, seconds for 10^5 of them), made
+/// after the checks that need only the grains' materials and kinds, so that a mistake there is
+/// reported at once; in parallel, the first failure in file order reported.
+void make_polyhedra(SceneDraft& draft);
+/// The inflows' rates (mass_rate needs the polyhedra's volumes) and due times; inflow_grains
+/// sorted by due time.
+void finish_inflows(SceneDraft& draft);
 
 // scene_checks.cpp: the checks of the scene as a whole, before its bodies are made.
 /// Every pair of materials that can touch (grain-grain, grain-wall) needs a law, unless a
