@@ -15,14 +15,16 @@ double self_gravity_accelerations(const Model& model, const State& state, const 
   for (std::size_t b = 0; b < model.body_count(); ++b) {
     if (!model.is_fixed(b)) grains.push_back(b);
   }
-  std::vector<double>&positions = scratch.positions, &masses = scratch.masses;
+  std::vector<double>& positions = scratch.positions;
+  std::vector<double>& masses = scratch.masses;
   positions.resize(3 * grains.size());
   masses.resize(grains.size());
   for (std::size_t k = 0; k < grains.size(); ++k) {
     for (int i = 0; i < 3; ++i) positions[3 * k + static_cast<std::size_t>(i)] = state.position[grains[k]][i];
     masses[k] = model.mass[grains[k]];
   }
-  std::vector<double>&acceleration = scratch.acceleration, &potential = scratch.potential;
+  std::vector<double>& acceleration = scratch.acceleration;
+  std::vector<double>& potential = scratch.potential;
   acceleration.resize(3 * grains.size());
   potential.resize(grains.size());
   gravity::compute_field(options, positions, masses, acceleration, potential, scratch.field);
