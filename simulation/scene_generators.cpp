@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <numbers>
 #include <random>
+#include <span>
 #include <tuple>
 
 #include "preprocessing/grain_shapes.hpp"
@@ -250,15 +251,14 @@ std::vector<GrainSpec> inflow_grains(const TableReader& entry, std::size_t index
 
 /// Grains per second: `rate`, or `mass_rate` (kg/s) over the mean mass of the inflow's own grains
 /// (density x volume), so that the grains' mass enters at mass_rate on average.
-double inflow_rate(const SceneDraft& draft, double mass_rate, const GrainSpec* grains, std::size_t count) {
+double inflow_rate(const SceneDraft& draft, double mass_rate, std::span<const GrainSpec> grains) {
   double mass = 0.0;
-  for (std::size_t k = 0; k < count; ++k) {
-    const GrainSpec& grain = grains[k];
+  for (const GrainSpec& grain : grains) {
     const double density = draft.scene.model.materials[static_cast<std::size_t>(grain.material)].density;
     mass += density * (grain.polyhedron ? grain.polyhedron->volume
                                         : 4.0 / 3.0 * std::numbers::pi * grain.radius * grain.radius * grain.radius);
   }
-  return mass_rate * static_cast<double>(count) / mass;
+  return mass_rate * static_cast<double>(grains.size()) / mass;
 }
 
 }  // namespace
@@ -302,8 +302,9 @@ void finish_inflows(SceneDraft& draft) {
   for (std::size_t index = 0; index < inflows.size(); ++index) {
     Inflow& inflow = inflows[index];
     if (draft.inflow_mass_rates[index] > 0.0) {
-      inflow.rate = inflow_rate(draft, draft.inflow_mass_rates[index],
-                                draft.inflow_grains.data() + draft.inflow_first_grain[index], inflow.count);
+      const std::span<const GrainSpec> grains(draft.inflow_grains.data() + draft.inflow_first_grain[index],
+                                              inflow.count);
+      inflow.rate = inflow_rate(draft, draft.inflow_mass_rates[index], grains);
     }
     for (std::uint64_t k = 0; k < inflow.count; ++k) {
       order.push_back({static_cast<int>(index), k, inflow.start_time + static_cast<double>(k) / inflow.rate});
