@@ -12,15 +12,18 @@
 #define RUBBLE_GRAVITY_CLONES
 #endif
 
-// On CPUs with AVX-512, p2p runs a hand-vectorized version instead (p2p_avx512): 1/sqrt(r^2) by
-// the 14-bit estimate VRSQRT14PD refined by two Newton steps (14 -> 28 -> 56 bits: within a few
+// On CPUs with AVX-512, p2p runs a hand-vectorized version instead (p2p_targets_avx512): 1/sqrt(r^2)
+// by the 14-bit estimate VRSQRT14PD refined by two Newton steps (14 -> 28 -> 56 bits: within a few
 // ulps of 1/std::sqrt, so the direct sum stays exact to ~1e-15), in place of a square root and a
 // division, whose throughput bounded the kernel (Zen 4 at 2.6 GHz: 1.1e9 pairs per CPU second
-// with them, 1.3e9 without: the kernel is then bound by its 16 multiply/FMA instructions per 8
-// pairs). m2p_quadrupole keeps the square root and the division: it has ~36 multiply/FMA
-// instructions per 8 cells, which bound it, and the divider runs beside them; a Newton-refined
-// estimate only added to them (measured: no gain). The choice is made once per process from the
-// CPU, so results still depend only on the machine, never on the thread count.
+// with them, 1.3e9 without). Its bound is then its 16 multiply/FMA instructions per 8 pairs; what
+// kept it at ~58 % of that bound (Zen 5) was the masked loads of every block and the latency of
+// one target's chain: full blocks load plainly (the last one masked), and several targets share
+// one pass, their chains interleaved (78-84 % of the bound: bench/RESULTS.md). m2p_quadrupole keeps
+// the square root and the division: it has ~36 multiply/FMA instructions per 8 cells, which bound
+// it, and the divider runs beside them; a Newton-refined estimate only added to them (measured:
+// no gain). The choice is made once per process from the CPU, so results still depend only on the
+// machine, never on the thread count.
 #if defined(__GNUC__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
 #define RUBBLE_GRAVITY_AVX512 1
 #include <immintrin.h>
@@ -67,35 +70,112 @@ __attribute__((target("avx512f"))) inline double lane_sum(__m512d v) {
 /// Mask of the first `count` (< 8) lanes.
 inline __mmask8 tail_mask(std::size_t count) { return static_cast<__mmask8>((1u << count) - 1u); }
 
-template <int kNewtonSteps>
-__attribute__((target("avx512f"))) void p2p_avx512(const double* sx, const double* sy, const double* sz,
-                                                   const double* sm, std::size_t n, double xi, double yi, double zi,
-                                                   double eps2, Accum& acc) {
-  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
-  const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
-  __m512d ax = zero, ay = zero, az = zero, phi = zero;
-  // Eight sources per lane group; the last group is masked (absent lanes load mass 0 and r2 = 1).
-  for (std::size_t j = 0; j < n; j += 8) {
-    const __mmask8 live = n - j >= 8 ? static_cast<__mmask8>(0xff) : tail_mask(n - j);
-    const __m512d dx = _mm512_sub_pd(vx, _mm512_maskz_loadu_pd(live, sx + j));
-    const __m512d dy = _mm512_sub_pd(vy, _mm512_maskz_loadu_pd(live, sy + j));
-    const __m512d dz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(live, sz + j));
-    const __m512d m = _mm512_maskz_loadu_pd(live, sm + j);
-    const __m512d r2 = _mm512_fmadd_pd(dz, dz, _mm512_fmadd_pd(dy, dy, _mm512_fmadd_pd(dx, dx, veps2)));
-    // r2 == 0 (the target itself without softening) contributes nothing, like the scalar kernel.
-    const __mmask8 valid = _mm512_mask_cmp_pd_mask(live, r2, zero, _CMP_GT_OQ);
-    const __m512d inv = _mm512_maskz_mov_pd(valid, rsqrt_newton<kNewtonSteps>(_mm512_mask_mov_pd(one, valid, r2)));
-    const __m512d m_inv = _mm512_mul_pd(m, inv);
-    const __m512d m_inv3 = _mm512_mul_pd(m_inv, _mm512_mul_pd(inv, inv));
-    ax = _mm512_fmadd_pd(dx, m_inv3, ax);
-    ay = _mm512_fmadd_pd(dy, m_inv3, ay);
-    az = _mm512_fmadd_pd(dz, m_inv3, az);
-    phi = _mm512_add_pd(phi, m_inv);
+/// Targets p2p_targets_avx512 takes per pass over the sources: four targets' broadcast
+/// coordinates and accumulators (28 registers) still fit AVX-512's 32, and each block of sources
+/// is loaded once for the four; with more the accumulators spill.
+constexpr int kTargetsPerPass = 4;
+
+/// kTargets targets' broadcast coordinates and their running lane sums (a/(-G), phi/(-G)).
+template <int kTargets>
+struct P2PLanes {
+  __m512d x[kTargets], y[kTargets], z[kTargets];
+  __m512d ax[kTargets], ay[kTargets], az[kTargets], phi[kTargets];
+};
+
+/// One block of eight sources against every target of `lanes`. kFull: all eight sources are
+/// there, so plain loads and no lane masks (the masked form in every block cost ~20 % of the
+/// kernel's time); else the `live` lanes, absent ones loaded as mass 0 at the origin. Every
+/// target's lanes see the same operations in the same order as with one target per pass, so
+/// each target's sums are the same to the bit however the targets are grouped.
+template <int kNewtonSteps, int kTargets, bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline void p2p_block_avx512(const double* sx, const double* sy,
+                                                                               const double* sz, const double* sm,
+                                                                               __mmask8 live, __m512d eps2,
+                                                                               P2PLanes<kTargets>& lanes) {
+  const __m512d zero = _mm512_setzero_pd();
+  __m512d x, y, z, m;
+  if constexpr (kFull) {
+    x = _mm512_loadu_pd(sx), y = _mm512_loadu_pd(sy), z = _mm512_loadu_pd(sz), m = _mm512_loadu_pd(sm);
+  } else {
+    x = _mm512_maskz_loadu_pd(live, sx), y = _mm512_maskz_loadu_pd(live, sy);
+    z = _mm512_maskz_loadu_pd(live, sz), m = _mm512_maskz_loadu_pd(live, sm);
   }
-  acc.ax += lane_sum(ax);
-  acc.ay += lane_sum(ay);
-  acc.az += lane_sum(az);
-  acc.phi += lane_sum(phi);
+  // Staged by target (all differences, then all square roots, then all sums): the four chains
+  // interleave and the core overlaps their latencies.
+  __m512d dx[kTargets], dy[kTargets], dz[kTargets], r2[kTargets], inv[kTargets];
+  __mmask8 valid[kTargets];
+  for (int t = 0; t < kTargets; ++t) {
+    dx[t] = _mm512_sub_pd(lanes.x[t], x);
+    dy[t] = _mm512_sub_pd(lanes.y[t], y);
+    dz[t] = _mm512_sub_pd(lanes.z[t], z);
+    r2[t] = _mm512_fmadd_pd(dz[t], dz[t], _mm512_fmadd_pd(dy[t], dy[t], _mm512_fmadd_pd(dx[t], dx[t], eps2)));
+    // r2 == 0 (the target itself without softening) contributes nothing, like the scalar kernel:
+    // its 1/sqrt is inf, the Newton steps make it NaN, and the mask makes it 0.
+    valid[t] =
+        kFull ? _mm512_cmp_pd_mask(r2[t], zero, _CMP_GT_OQ) : _mm512_mask_cmp_pd_mask(live, r2[t], zero, _CMP_GT_OQ);
+  }
+  for (int t = 0; t < kTargets; ++t) inv[t] = _mm512_maskz_mov_pd(valid[t], rsqrt_newton<kNewtonSteps>(r2[t]));
+  for (int t = 0; t < kTargets; ++t) {
+    const __m512d m_inv = _mm512_mul_pd(m, inv[t]);
+    const __m512d m_inv3 = _mm512_mul_pd(m_inv, _mm512_mul_pd(inv[t], inv[t]));
+    lanes.ax[t] = _mm512_fmadd_pd(dx[t], m_inv3, lanes.ax[t]);
+    lanes.ay[t] = _mm512_fmadd_pd(dy[t], m_inv3, lanes.ay[t]);
+    lanes.az[t] = _mm512_fmadd_pd(dz[t], m_inv3, lanes.az[t]);
+    lanes.phi[t] = _mm512_add_pd(lanes.phi[t], m_inv);
+  }
+}
+
+/// p2p for kTargets targets in one pass over the sources: full blocks of eight, then the rest.
+template <int kNewtonSteps, int kTargets>
+__attribute__((target("avx512f"))) void p2p_targets_avx512(const double* sx, const double* sy, const double* sz,
+                                                           const double* sm, std::size_t n, const double* xi,
+                                                           const double* yi, const double* zi, double eps2,
+                                                           Accum* acc) {
+  const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd();
+  P2PLanes<kTargets> lanes;
+  for (int t = 0; t < kTargets; ++t) {
+    lanes.x[t] = _mm512_set1_pd(xi[t]), lanes.y[t] = _mm512_set1_pd(yi[t]), lanes.z[t] = _mm512_set1_pd(zi[t]);
+    lanes.ax[t] = zero, lanes.ay[t] = zero, lanes.az[t] = zero, lanes.phi[t] = zero;
+  }
+  std::size_t j = 0;
+  for (; j + 8 <= n; j += 8) {
+    p2p_block_avx512<kNewtonSteps, kTargets, true>(sx + j, sy + j, sz + j, sm + j, 0xff, veps2, lanes);
+  }
+  if (j < n) {
+    p2p_block_avx512<kNewtonSteps, kTargets, false>(sx + j, sy + j, sz + j, sm + j, tail_mask(n - j), veps2, lanes);
+  }
+  for (int t = 0; t < kTargets; ++t) {
+    acc[t].ax += lane_sum(lanes.ax[t]);
+    acc[t].ay += lane_sum(lanes.ay[t]);
+    acc[t].az += lane_sum(lanes.az[t]);
+    acc[t].phi += lane_sum(lanes.phi[t]);
+  }
+}
+
+/// Any number of targets: kTargetsPerPass at a time, the rest one by one.
+template <int kNewtonSteps>
+void p2p_many_avx512(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+                     const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2,
+                     Accum* acc) {
+  std::size_t t = 0;
+  for (; t + kTargetsPerPass <= targets; t += kTargetsPerPass) {
+    p2p_targets_avx512<kNewtonSteps, kTargetsPerPass>(sx, sy, sz, sm, n, xi + t, yi + t, zi + t, eps2, acc + t);
+  }
+  for (; t < targets; ++t)
+    p2p_targets_avx512<kNewtonSteps, 1>(sx, sy, sz, sm, n, xi + t, yi + t, zi + t, eps2, acc + t);
+}
+
+/// The quadrupole kernel's arrays (cells' centres, masses, second moments).
+template <typename Real>
+struct QuadrupoleSources {
+  const Real *cx, *cy, *cz, *cm, *qxx, *qxy, *qxz, *qyy, *qyz, *qzz;
+};
+
+/// Eight doubles from p (kFull), or its `live` lanes and zeros.
+template <bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline __m512d load_lanes(const double* p, __mmask8 live) {
+  if constexpr (kFull) return _mm512_loadu_pd(p);
+  return _mm512_maskz_loadu_pd(live, p);
 }
 
 /// 1/sqrt(x) for x > 0 in single precision: VRSQRT14PS (relative error < 2^-14) and one Newton
@@ -120,32 +200,93 @@ __attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
   return lane_sum(sum);
 }
 
+/// Sixteen floats from p (kFull), or its `live` lanes and zeros.
+template <bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline __m512 load_lanes(const float* p, __mmask16 live) {
+  if constexpr (kFull) return _mm512_loadu_ps(p);
+  return _mm512_maskz_loadu_ps(live, p);
+}
+
+/// One block of sixteen float sources (kFull: all there; else the `live` lanes); as p2p_block_avx512.
+template <bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline void p2p_single_block_avx512(
+    const float* sx, const float* sy, const float* sz, const float* sm, __mmask16 live, __m512 vx, __m512 vy, __m512 vz,
+    __m512 veps2, __m512& ax, __m512& ay, __m512& az, __m512& phi) {
+  const __m512 zero = _mm512_setzero_ps();
+  const __m512 x = load_lanes<kFull>(sx, live), y = load_lanes<kFull>(sy, live), z = load_lanes<kFull>(sz, live);
+  const __m512 m = load_lanes<kFull>(sm, live);
+  const __m512 dx = _mm512_sub_ps(vx, x), dy = _mm512_sub_ps(vy, y), dz = _mm512_sub_ps(vz, z);
+  const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
+  // r2 == 0 contributes nothing: its inf 1/sqrt turns NaN in the Newton step and is masked to 0.
+  const __mmask16 valid =
+      kFull ? _mm512_cmp_ps_mask(r2, zero, _CMP_GT_OQ) : _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
+  const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(r2));
+  const __m512 m_inv = _mm512_mul_ps(m, inv);
+  const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
+  ax = _mm512_fmadd_ps(dx, m_inv3, ax);
+  ay = _mm512_fmadd_ps(dy, m_inv3, ay);
+  az = _mm512_fmadd_ps(dz, m_inv3, az);
+  phi = _mm512_add_ps(phi, m_inv);
+}
+
 __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const float* sy, const float* sz,
                                                           const float* sm, std::size_t n, float xi, float yi, float zi,
                                                           float eps2, Accum& acc) {
   const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
-  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
+  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps();
   __m512 ax = zero, ay = zero, az = zero, phi = zero;
-  for (std::size_t j = 0; j < n; j += 16) {
-    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : tail_mask16(n - j);
-    const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, sx + j));
-    const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, sy + j));
-    const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, sz + j));
-    const __m512 m = _mm512_maskz_loadu_ps(live, sm + j);
-    const __m512 r2 = _mm512_fmadd_ps(dz, dz, _mm512_fmadd_ps(dy, dy, _mm512_fmadd_ps(dx, dx, veps2)));
-    const __mmask16 valid = _mm512_mask_cmp_ps_mask(live, r2, zero, _CMP_GT_OQ);
-    const __m512 inv = _mm512_maskz_mov_ps(valid, rsqrt_newton_single(_mm512_mask_mov_ps(one, valid, r2)));
-    const __m512 m_inv = _mm512_mul_ps(m, inv);
-    const __m512 m_inv3 = _mm512_mul_ps(m_inv, _mm512_mul_ps(inv, inv));
-    ax = _mm512_fmadd_ps(dx, m_inv3, ax);
-    ay = _mm512_fmadd_ps(dy, m_inv3, ay);
-    az = _mm512_fmadd_ps(dz, m_inv3, az);
-    phi = _mm512_add_ps(phi, m_inv);
+  std::size_t j = 0;
+  for (; j + 16 <= n; j += 16) {
+    p2p_single_block_avx512<true>(sx + j, sy + j, sz + j, sm + j, 0xffff, vx, vy, vz, veps2, ax, ay, az, phi);
+  }
+  if (j < n) {
+    p2p_single_block_avx512<false>(sx + j, sy + j, sz + j, sm + j, tail_mask16(n - j), vx, vy, vz, veps2, ax, ay, az,
+                                   phi);
   }
   acc.ax += lane_sum_single(ax);
   acc.ay += lane_sum_single(ay);
   acc.az += lane_sum_single(az);
   acc.phi += lane_sum_single(phi);
+}
+
+/// One block of sixteen float cells (kFull: all there; else the `live` lanes, absent ones
+/// loaded as mass and moments 0 with r2 = 1 for the 1/sqrt).
+template <bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_single_block_avx512(
+    const QuadrupoleSources<float>& c, std::size_t j, __mmask16 live, __m512 vx, __m512 vy, __m512 vz, __m512 veps2,
+    __m512& ax, __m512& ay, __m512& az, __m512& phi) {
+  const __m512 one = _mm512_set1_ps(1.0F);
+  const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
+               c05 = _mm512_set1_ps(0.5F);
+  const __m512 rx = _mm512_sub_ps(vx, load_lanes<kFull>(c.cx + j, live));
+  const __m512 ry = _mm512_sub_ps(vy, load_lanes<kFull>(c.cy + j, live));
+  const __m512 rz = _mm512_sub_ps(vz, load_lanes<kFull>(c.cz + j, live));
+  const __m512 m = load_lanes<kFull>(c.cm + j, live);
+  const __m512 mxx = load_lanes<kFull>(c.qxx + j, live), mxy = load_lanes<kFull>(c.qxy + j, live),
+               mxz = load_lanes<kFull>(c.qxz + j, live), myy = load_lanes<kFull>(c.qyy + j, live),
+               myz = load_lanes<kFull>(c.qyz + j, live), mzz = load_lanes<kFull>(c.qzz + j, live);
+  __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
+  if constexpr (!kFull) r2 = _mm512_mask_mov_ps(one, live, r2);
+  const __m512 d1 = rsqrt_newton_single(r2);
+  const __m512 d2 = _mm512_mul_ps(d1, d1);
+  const __m512 d3 = _mm512_mul_ps(d1, d2);
+  const __m512 d5 = _mm512_mul_ps(d3, d2);
+  const __m512 d7 = _mm512_mul_ps(d5, d2);
+  const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
+  const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
+  const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
+  const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
+  const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
+  // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+  const __m512 radial =
+      _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr, _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
+  const __m512 d5x3 = _mm512_mul_ps(c3, d5);
+  ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
+  ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
+  az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
+  // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+  phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
+                                            _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
 }
 
 __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float* cx, const float* cy, const float* cz,
@@ -154,42 +295,15 @@ __attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float
                                                                      const float* qyy, const float* qyz,
                                                                      const float* qzz, std::size_t n, float xi,
                                                                      float yi, float zi, float eps2, Accum& acc) {
+  const QuadrupoleSources<float> c{cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz};
   const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
-  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0F);
-  const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
-               c05 = _mm512_set1_ps(0.5F);
+  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps();
   __m512 ax = zero, ay = zero, az = zero, phi = zero;
-  for (std::size_t j = 0; j < n; j += 16) {
-    const __mmask16 live = n - j >= 16 ? static_cast<__mmask16>(0xffff) : tail_mask16(n - j);
-    // Absent lanes load mass and moments 0 (they add nothing) and take r2 = 1 for the 1/sqrt.
-    const __m512 rx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(live, cx + j));
-    const __m512 ry = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(live, cy + j));
-    const __m512 rz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(live, cz + j));
-    const __m512 m = _mm512_maskz_loadu_ps(live, cm + j);
-    const __m512 mxx = _mm512_maskz_loadu_ps(live, qxx + j), mxy = _mm512_maskz_loadu_ps(live, qxy + j),
-                 mxz = _mm512_maskz_loadu_ps(live, qxz + j), myy = _mm512_maskz_loadu_ps(live, qyy + j),
-                 myz = _mm512_maskz_loadu_ps(live, qyz + j), mzz = _mm512_maskz_loadu_ps(live, qzz + j);
-    const __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
-    const __m512 d1 = rsqrt_newton_single(_mm512_mask_mov_ps(one, live, r2));
-    const __m512 d2 = _mm512_mul_ps(d1, d1);
-    const __m512 d3 = _mm512_mul_ps(d1, d2);
-    const __m512 d5 = _mm512_mul_ps(d3, d2);
-    const __m512 d7 = _mm512_mul_ps(d5, d2);
-    const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
-    const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
-    const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
-    const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
-    const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
-    // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
-    const __m512 radial = _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr,
-                                          _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
-    const __m512 d5x3 = _mm512_mul_ps(c3, d5);
-    ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
-    ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
-    az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
-    // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-    phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
-                                              _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
+  std::size_t j = 0;
+  for (; j + 16 <= n; j += 16)
+    m2p_quadrupole_single_block_avx512<true>(c, j, 0xffff, vx, vy, vz, veps2, ax, ay, az, phi);
+  if (j < n) {
+    m2p_quadrupole_single_block_avx512<false>(c, j, tail_mask16(n - j), vx, vy, vz, veps2, ax, ay, az, phi);
   }
   acc.ax += lane_sum_single(ax);
   acc.ay += lane_sum_single(ay);
@@ -287,6 +401,14 @@ __attribute__((always_inline)) inline void m2p_quadrupole_loop(const Real* cx, c
 }
 
 RUBBLE_GRAVITY_CLONES
+void m2p_quadrupole_portable(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
+                             const double* qxy, const double* qxz, const double* qyy, const double* qyz,
+                             const double* qzz, std::size_t n, double xi, double yi, double zi, double eps2,
+                             Accum& acc) {
+  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+}
+
+RUBBLE_GRAVITY_CLONES
 void m2p_quadrupole_single_portable(const float* cx, const float* cy, const float* cz, const float* cm,
                                     const float* qxx, const float* qxy, const float* qxz, const float* qyy,
                                     const float* qyz, const float* qzz, std::size_t n, float xi, float yi, float zi,
@@ -299,7 +421,7 @@ void m2p_quadrupole_single_portable(const float* cx, const float* cy, const floa
 void p2p(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi, double yi,
          double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+  if (cpu_has_avx512()) return p2p_targets_avx512<2, 1>(sx, sy, sz, sm, n, &xi, &yi, &zi, eps2, &acc);
 #endif
   p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
@@ -307,16 +429,32 @@ void p2p(const double* sx, const double* sy, const double* sz, const double* sm,
 void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
                      double yi, double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
-  if (cpu_has_avx512()) return p2p_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
+  if (cpu_has_avx512()) return p2p_targets_avx512<1, 1>(sx, sy, sz, sm, n, &xi, &yi, &zi, eps2, &acc);
 #endif
   p2p_portable(sx, sy, sz, sm, n, xi, yi, zi, eps2, acc);
 }
 
-RUBBLE_GRAVITY_CLONES
+void p2p_targets(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+                 const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2, Accum* acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_many_avx512<2>(sx, sy, sz, sm, n, xi, yi, zi, targets, eps2, acc);
+#endif
+  for (std::size_t t = 0; t < targets; ++t) p2p_portable(sx, sy, sz, sm, n, xi[t], yi[t], zi[t], eps2, acc[t]);
+}
+
+void p2p_approximate_targets(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+                             const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2,
+                             Accum* acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512()) return p2p_many_avx512<1>(sx, sy, sz, sm, n, xi, yi, zi, targets, eps2, acc);
+#endif
+  for (std::size_t t = 0; t < targets; ++t) p2p_portable(sx, sy, sz, sm, n, xi[t], yi[t], zi[t], eps2, acc[t]);
+}
+
 void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
                     const double* qxy, const double* qxz, const double* qyy, const double* qyz, const double* qzz,
                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
-  m2p_quadrupole_loop(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
+  m2p_quadrupole_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
 // The float kernels run kFloatBlock sources at a time; each block's sums go into acc in double.

@@ -30,6 +30,18 @@ void p2p(const double* sx, const double* sy, const double* sz, const double* sm,
 void p2p_approximate(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n, double xi,
                      double yi, double zi, double eps2, Accum& acc);
 
+/// p2p for `targets` targets (xi[t], yi[t], zi[t]) over the same sources: acc[t] receives to the
+/// bit what p2p(..., xi[t], yi[t], zi[t], eps2, acc[t]) adds. On AVX-512 CPUs the sources are read
+/// once for every four targets, whose arithmetic interleaves (1.2x the rate of one target a pass).
+void p2p_targets(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+                 const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2, Accum* acc);
+
+/// p2p_approximate for several targets, as p2p_targets is p2p for several: the same bits as
+/// p2p_approximate target by target.
+void p2p_approximate_targets(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
+                             const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2,
+                             Accum* acc);
+
 /// Quadrupole cell-particle: adds the field of n cells, each with mass m, centre of mass c and
 /// second moment M_ab = sum_k m_k (y_k - c)_a (y_k - c)_b (not trace-free, so that the softened
 /// kernel 1/sqrt(r^2 + eps2) is expanded exactly to second order). With D = (r^2 + eps2)^{-1/2},

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -518,15 +519,28 @@ double Tree::evaluate(const GravityOptions& options, std::span<double> accelerat
 
 namespace {
 
-/// The kernels by the lists' precision: double (p2p_approximate, m2p_quadrupole) or float.
+/// Targets the particle kernel takes per pass over a group's list (p2p_approximate_targets).
+constexpr std::size_t kTargetsPerPass = 4;
+
+/// Targets in the lists' units, up to kTargetsPerPass of them.
+struct TargetBlock {
+  std::array<double, kTargetsPerPass> x{}, y{}, z{};
+  std::size_t count = 0;
+};
+
+/// The particle kernel by the lists' precision: double (p2p_approximate_targets, the sources read
+/// once for four targets) or float (p2p_single, target by target).
 inline void tree_p2p(const double* x, const double* y, const double* z, const double* m, std::size_t n,
-                     const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
-  detail::p2p_approximate(x, y, z, m, n, target[0], target[1], target[2], eps2, acc);
+                     const TargetBlock& targets, double eps2, detail::Accum* acc) {
+  detail::p2p_approximate_targets(x, y, z, m, n, targets.x.data(), targets.y.data(), targets.z.data(), targets.count,
+                                  eps2, acc);
 }
 inline void tree_p2p(const float* x, const float* y, const float* z, const float* m, std::size_t n,
-                     const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
-  detail::p2p_single(x, y, z, m, n, static_cast<float>(target[0]), static_cast<float>(target[1]),
-                     static_cast<float>(target[2]), static_cast<float>(eps2), acc);
+                     const TargetBlock& targets, double eps2, detail::Accum* acc) {
+  for (std::size_t t = 0; t < targets.count; ++t) {
+    detail::p2p_single(x, y, z, m, n, static_cast<float>(targets.x[t]), static_cast<float>(targets.y[t]),
+                       static_cast<float>(targets.z[t]), static_cast<float>(eps2), acc[t]);
+  }
 }
 template <typename Lists>
 inline void tree_m2p(const Lists& l, const std::array<double, 3>& target, double eps2, detail::Accum& acc) {
@@ -620,20 +634,29 @@ void Tree::evaluate_group(const Group& g, const InteractionLists<Real>& lists, c
   const double eps_scaled = eps * inv_length;
   const double eps2 = eps_scaled * eps_scaled;
   const std::size_t np = lists.pm.size(), nc = lists.cm.size();
-  for (std::uint32_t k = g.begin; k < g.begin + g.count; ++k) {
-    const std::array<double, 3> target{(x_[k] - units.ox) * inv_length, (y_[k] - units.oy) * inv_length,
-                                       (z_[k] - units.oz) * inv_length};
-    detail::Accum acc;
-    tree_p2p(lists.px.data(), lists.py.data(), lists.pz.data(), lists.pm.data(), np, target, eps2, acc);
-    if (nc > 0) tree_m2p(lists, target, eps2, acc);
-    // The target's own leaf is always opened (it is within b_max of the node's centre), so
-    // with softening its self term m_k / eps is in acc.phi: remove it.
-    if (eps2 > 0) acc.phi -= m_[k] * inv_mass / eps_scaled;
-    const std::size_t o = order_[k];
-    accelerations[3 * o] = to_acceleration * acc.ax;
-    accelerations[3 * o + 1] = to_acceleration * acc.ay;
-    accelerations[3 * o + 2] = to_acceleration * acc.az;
-    if (!potential.empty()) potential[o] = to_potential * acc.phi;
+  for (std::uint32_t first = g.begin; first < g.begin + g.count; first += kTargetsPerPass) {
+    TargetBlock targets;
+    targets.count = std::min<std::size_t>(kTargetsPerPass, g.begin + g.count - first);
+    for (std::size_t t = 0; t < targets.count; ++t) {
+      const std::size_t k = first + t;
+      targets.x[t] = (x_[k] - units.ox) * inv_length;
+      targets.y[t] = (y_[k] - units.oy) * inv_length;
+      targets.z[t] = (z_[k] - units.oz) * inv_length;
+    }
+    std::array<detail::Accum, kTargetsPerPass> acc;
+    tree_p2p(lists.px.data(), lists.py.data(), lists.pz.data(), lists.pm.data(), np, targets, eps2, acc.data());
+    for (std::size_t t = 0; t < targets.count; ++t) {
+      const std::size_t k = first + t;
+      if (nc > 0) tree_m2p(lists, {targets.x[t], targets.y[t], targets.z[t]}, eps2, acc[t]);
+      // The target's own leaf is always opened (it is within b_max of the node's centre), so
+      // with softening its self term m_k / eps is in acc.phi: remove it.
+      if (eps2 > 0) acc[t].phi -= m_[k] * inv_mass / eps_scaled;
+      const std::size_t o = order_[k];
+      accelerations[3 * o] = to_acceleration * acc[t].ax;
+      accelerations[3 * o + 1] = to_acceleration * acc[t].ay;
+      accelerations[3 * o + 2] = to_acceleration * acc[t].az;
+      if (!potential.empty()) potential[o] = to_potential * acc[t].phi;
+    }
   }
 }
 

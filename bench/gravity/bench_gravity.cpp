@@ -27,6 +27,10 @@
 
 #include <omp.h>
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -227,13 +231,56 @@ std::vector<double> relative_errors(const std::vector<double>& acc, const std::v
   return err;
 }
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+/// Twelve independent chains of 512-bit FMAs (four cycles of latency, two pipes: eight in flight
+/// keep both busy), `iterations` times: the core's FMA issue rate, measured rather than taken from
+/// a datasheet (a virtual machine's clock is not the nominal one).
+__attribute__((target("avx512f"), noinline)) double fma_chains(long iterations) {
+  __m512d a0 = _mm512_set1_pd(1.00), a1 = _mm512_set1_pd(1.01), a2 = _mm512_set1_pd(1.02), a3 = _mm512_set1_pd(1.03),
+          a4 = _mm512_set1_pd(1.04), a5 = _mm512_set1_pd(1.05), a6 = _mm512_set1_pd(1.06), a7 = _mm512_set1_pd(1.07),
+          a8 = _mm512_set1_pd(1.08), a9 = _mm512_set1_pd(1.09), a10 = _mm512_set1_pd(1.10), a11 = _mm512_set1_pd(1.11);
+  const __m512d b = _mm512_set1_pd(0.999999), c = _mm512_set1_pd(1e-7);
+  for (long i = 0; i < iterations; ++i) {
+    a0 = _mm512_fmadd_pd(a0, b, c), a1 = _mm512_fmadd_pd(a1, b, c), a2 = _mm512_fmadd_pd(a2, b, c);
+    a3 = _mm512_fmadd_pd(a3, b, c), a4 = _mm512_fmadd_pd(a4, b, c), a5 = _mm512_fmadd_pd(a5, b, c);
+    a6 = _mm512_fmadd_pd(a6, b, c), a7 = _mm512_fmadd_pd(a7, b, c), a8 = _mm512_fmadd_pd(a8, b, c);
+    a9 = _mm512_fmadd_pd(a9, b, c), a10 = _mm512_fmadd_pd(a10, b, c), a11 = _mm512_fmadd_pd(a11, b, c);
+  }
+  const __m512d sum = _mm512_add_pd(_mm512_add_pd(_mm512_add_pd(_mm512_add_pd(a0, a1), _mm512_add_pd(a2, a3)),
+                                                  _mm512_add_pd(_mm512_add_pd(a4, a5), _mm512_add_pd(a6, a7))),
+                                    _mm512_add_pd(_mm512_add_pd(a8, a9), _mm512_add_pd(a10, a11)));
+  alignas(64) double lanes[8];
+  _mm512_store_pd(lanes, sum);
+  return lanes[0];
+}
+
+/// 512-bit FMA instructions per CPU second of one thread (best of 3), or 0 without AVX-512.
+double fma_rate() {
+  if (!__builtin_cpu_supports("avx512f")) return 0.0;
+  constexpr long iterations = 50'000'000;
+  double best = 1e300, sink = 0.0;
+  for (int r = 0; r < 3; ++r) {
+    const double c0 = cpu_now();
+    sink += fma_chains(iterations);
+    best = std::min(best, cpu_now() - c0);
+  }
+  if (!std::isfinite(sink)) return 0.0;
+  return 12.0 * static_cast<double>(iterations) / best;
+}
+#else
+double fma_rate() { return 0.0; }
+#endif
+
 /// --direct-rate: pair interactions per second of the exact direct sum, per backend and thread count.
 void run_direct_rate(const Arguments& args) {
   const auto& [ns, threads, reps, dist, backends] =
       std::tie(args.ns, args.threads, args.reps, args.dist, args.backends);
   std::printf(
       "| N | backend | threads | seconds | CPU seconds | pair interactions / s | per core (wall) | per CPU second "
-      "|\n|---|---|---|---|---|---|---|---|\n");
+      "| of the FMA bound |\n|---|---|---|---|---|---|---|---|---|\n");
+  // The CPU kernel issues 16 multiply/FMA instructions per 8 pairs (kernels.cpp): at the core's
+  // measured FMA rate F it cannot exceed F / 2 pairs per CPU second.
+  const double pair_bound = fma_rate() / 2.0;
   for (double nd : ns) {
     const auto n = static_cast<std::size_t>(nd);
     std::vector<double> pos, mass, acc(3 * n), pot(n);
@@ -256,8 +303,13 @@ void run_direct_rate(const Arguments& args) {
           best_cpu = std::min(best_cpu, cpu_now() - c0);
         }
         const double pairs = static_cast<double>(n) * static_cast<double>(n - 1);
-        std::printf("| %zu | %s | %d | %.4g | %.4g | %.3g | %.3g | %.3g |\n", n, g::to_string(backend).c_str(),
-                    static_cast<int>(t), best, best_cpu, pairs / best, pairs / best / t, pairs / best_cpu);
+        const std::string of_bound =
+            backend == g::Backend::cpu && pair_bound > 0.0
+                ? std::to_string(static_cast<int>(std::lround(100.0 * pairs / best_cpu / pair_bound))) + " %"
+                : "-";
+        std::printf("| %zu | %s | %d | %.4g | %.4g | %.3g | %.3g | %.3g | %s |\n", n, g::to_string(backend).c_str(),
+                    static_cast<int>(t), best, best_cpu, pairs / best, pairs / best / t, pairs / best_cpu,
+                    of_bound.c_str());
         std::fflush(stdout);
       }
     }
