@@ -19,11 +19,12 @@
 // with them, 1.3e9 without). Its bound is then its 16 multiply/FMA instructions per 8 pairs; what
 // kept it at ~58 % of that bound (Zen 5) was the masked loads of every block and the latency of
 // one target's chain: full blocks load plainly (the last one masked), and several targets share
-// one pass, their chains interleaved (78-84 % of the bound: bench/RESULTS.md). m2p_quadrupole keeps
-// the square root and the division: it has ~36 multiply/FMA instructions per 8 cells, which bound
-// it, and the divider runs beside them; a Newton-refined estimate only added to them (measured:
-// no gain). The choice is made once per process from the CPU, so results still depend only on the
-// machine, never on the thread count.
+// one pass, their chains interleaved (78-84 % of the bound: bench/RESULTS.md). m2p_quadrupole
+// (AVX-512, m2p_quadrupole_avx512) takes the same one-Newton-step 1/sqrt as p2p_approximate in
+// place of its square root and division, and full blocks without masks: 10-14 % off the
+// quadrupole tree rows (Zen 5; on Zen 4, with every block masked, the estimate had not paid).
+// The choice is made once per process from the CPU, so results still depend only on the machine,
+// never on the thread count.
 #if defined(__GNUC__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
 #define RUBBLE_GRAVITY_AVX512 1
 #include <immintrin.h>
@@ -176,6 +177,63 @@ template <bool kFull>
 __attribute__((target("avx512f"), always_inline)) inline __m512d load_lanes(const double* p, __mmask8 live) {
   if constexpr (kFull) return _mm512_loadu_pd(p);
   return _mm512_maskz_loadu_pd(live, p);
+}
+
+/// One block of eight cells from `j` (kFull: all there; else the `live` lanes, absent ones loaded
+/// as mass and moments 0 with r2 = 1 for the 1/sqrt). Formulas in kernels.hpp; 1/sqrt(r^2 + eps2)
+/// as in p2p_approximate (VRSQRT14PD and one Newton step: relative error < 5.6e-9, against the
+/// expansion's own >= 1e-6 at any practical theta), in place of a square root and a division.
+template <bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_block_avx512(
+    const QuadrupoleSources<double>& c, std::size_t j, __mmask8 live, __m512d vx, __m512d vy, __m512d vz, __m512d veps2,
+    __m512d& ax, __m512d& ay, __m512d& az, __m512d& phi) {
+  const __m512d one = _mm512_set1_pd(1.0);
+  const __m512d c15 = _mm512_set1_pd(1.5), c75 = _mm512_set1_pd(7.5), c3 = _mm512_set1_pd(3.0),
+                c05 = _mm512_set1_pd(0.5);
+  const __m512d rx = _mm512_sub_pd(vx, load_lanes<kFull>(c.cx + j, live));
+  const __m512d ry = _mm512_sub_pd(vy, load_lanes<kFull>(c.cy + j, live));
+  const __m512d rz = _mm512_sub_pd(vz, load_lanes<kFull>(c.cz + j, live));
+  const __m512d m = load_lanes<kFull>(c.cm + j, live);
+  const __m512d mxx = load_lanes<kFull>(c.qxx + j, live), mxy = load_lanes<kFull>(c.qxy + j, live),
+                mxz = load_lanes<kFull>(c.qxz + j, live), myy = load_lanes<kFull>(c.qyy + j, live),
+                myz = load_lanes<kFull>(c.qyz + j, live), mzz = load_lanes<kFull>(c.qzz + j, live);
+  __m512d r2 = _mm512_fmadd_pd(rz, rz, _mm512_fmadd_pd(ry, ry, _mm512_fmadd_pd(rx, rx, veps2)));
+  if constexpr (!kFull) r2 = _mm512_mask_mov_pd(one, live, r2);
+  const __m512d d1 = rsqrt_newton<1>(r2);
+  const __m512d d2 = _mm512_mul_pd(d1, d1);
+  const __m512d d3 = _mm512_mul_pd(d1, d2);
+  const __m512d d5 = _mm512_mul_pd(d3, d2);
+  const __m512d d7 = _mm512_mul_pd(d5, d2);
+  const __m512d mrx = _mm512_fmadd_pd(mxz, rz, _mm512_fmadd_pd(mxy, ry, _mm512_mul_pd(mxx, rx)));
+  const __m512d mry = _mm512_fmadd_pd(myz, rz, _mm512_fmadd_pd(myy, ry, _mm512_mul_pd(mxy, rx)));
+  const __m512d mrz = _mm512_fmadd_pd(mzz, rz, _mm512_fmadd_pd(myz, ry, _mm512_mul_pd(mxz, rx)));
+  const __m512d rmr = _mm512_fmadd_pd(rz, mrz, _mm512_fmadd_pd(ry, mry, _mm512_mul_pd(rx, mrx)));
+  const __m512d tr = _mm512_add_pd(_mm512_add_pd(mxx, myy), mzz);
+  // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+  const __m512d radial =
+      _mm512_fmadd_pd(_mm512_mul_pd(c75, d7), rmr, _mm512_fnmadd_pd(_mm512_mul_pd(c15, d5), tr, _mm512_mul_pd(m, d3)));
+  const __m512d d5x3 = _mm512_mul_pd(c3, d5);
+  ax = _mm512_add_pd(ax, _mm512_fmsub_pd(radial, rx, _mm512_mul_pd(d5x3, mrx)));
+  ay = _mm512_add_pd(ay, _mm512_fmsub_pd(radial, ry, _mm512_mul_pd(d5x3, mry)));
+  az = _mm512_add_pd(az, _mm512_fmsub_pd(radial, rz, _mm512_mul_pd(d5x3, mrz)));
+  // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+  phi = _mm512_add_pd(phi, _mm512_fnmadd_pd(_mm512_mul_pd(c05, d3), tr,
+                                            _mm512_fmadd_pd(_mm512_mul_pd(c15, d5), rmr, _mm512_mul_pd(m, d1))));
+}
+
+__attribute__((target("avx512f"))) void m2p_quadrupole_avx512(const QuadrupoleSources<double>& c, std::size_t n,
+                                                              double xi, double yi, double zi, double eps2,
+                                                              Accum& acc) {
+  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
+  const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd();
+  __m512d ax = zero, ay = zero, az = zero, phi = zero;
+  std::size_t j = 0;
+  for (; j + 8 <= n; j += 8) m2p_quadrupole_block_avx512<true>(c, j, 0xff, vx, vy, vz, veps2, ax, ay, az, phi);
+  if (j < n) m2p_quadrupole_block_avx512<false>(c, j, tail_mask(n - j), vx, vy, vz, veps2, ax, ay, az, phi);
+  acc.ax += lane_sum(ax);
+  acc.ay += lane_sum(ay);
+  acc.az += lane_sum(az);
+  acc.phi += lane_sum(phi);
 }
 
 /// 1/sqrt(x) for x > 0 in single precision: VRSQRT14PS (relative error < 2^-14) and one Newton
@@ -454,6 +512,10 @@ void p2p_approximate_targets(const double* sx, const double* sy, const double* s
 void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const double* cm, const double* qxx,
                     const double* qxy, const double* qxz, const double* qyy, const double* qyz, const double* qzz,
                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
+#ifdef RUBBLE_GRAVITY_AVX512
+  if (cpu_has_avx512())
+    return m2p_quadrupole_avx512({cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz}, n, xi, yi, zi, eps2, acc);
+#endif
   m2p_quadrupole_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
 
