@@ -19,7 +19,7 @@
 // with them, 1.3e9 without). Its bound is then its 16 multiply/FMA instructions per 8 pairs; what
 // kept it at ~58 % of that bound (Zen 5) was the masked loads of every block and the latency of
 // one target's chain: full blocks load plainly (the last one masked), and several targets share
-// one pass, their chains interleaved (78-84 % of the bound: bench/RESULTS.md). m2p_quadrupole
+// one pass, their chains interleaved (79-81 % of the bound: bench/RESULTS.md). m2p_quadrupole
 // (AVX-512, m2p_quadrupole_avx512) takes the same one-Newton-step 1/sqrt as p2p_approximate in
 // place of its square root and division, and full blocks without masks: 10-14 % off the
 // quadrupole tree rows (Zen 5; on Zen 4, with every block masked, the estimate had not paid).

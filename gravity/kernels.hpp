@@ -32,7 +32,7 @@ void p2p_approximate(const double* sx, const double* sy, const double* sz, const
 
 /// p2p for `targets` targets (xi[t], yi[t], zi[t]) over the same sources: acc[t] receives to the
 /// bit what p2p(..., xi[t], yi[t], zi[t], eps2, acc[t]) adds. On AVX-512 CPUs the sources are read
-/// once for every four targets, whose arithmetic interleaves (1.2x the rate of one target a pass).
+/// once for every four targets, whose arithmetic interleaves (~1.15x the rate of one target a pass).
 void p2p_targets(const double* sx, const double* sy, const double* sz, const double* sm, std::size_t n,
                  const double* xi, const double* yi, const double* zi, std::size_t targets, double eps2, Accum* acc);
 
