@@ -166,76 +166,6 @@ void p2p_many_avx512(const double* sx, const double* sy, const double* sz, const
     p2p_targets_avx512<kNewtonSteps, 1>(sx, sy, sz, sm, n, xi + t, yi + t, zi + t, eps2, acc + t);
 }
 
-/// The quadrupole kernel's arrays (cells' centres, masses, second moments).
-template <typename Real>
-struct QuadrupoleSources {
-  const Real *cx, *cy, *cz, *cm, *qxx, *qxy, *qxz, *qyy, *qyz, *qzz;
-};
-
-/// Eight doubles from p (kFull), or its `live` lanes and zeros.
-template <bool kFull>
-__attribute__((target("avx512f"), always_inline)) inline __m512d load_lanes(const double* p, __mmask8 live) {
-  if constexpr (kFull) return _mm512_loadu_pd(p);
-  return _mm512_maskz_loadu_pd(live, p);
-}
-
-/// One block of eight cells from `j` (kFull: all there; else the `live` lanes, absent ones loaded
-/// as mass and moments 0 with r2 = 1 for the 1/sqrt). Formulas in kernels.hpp; 1/sqrt(r^2 + eps2)
-/// as in p2p_approximate (VRSQRT14PD and one Newton step: relative error < 5.6e-9, against the
-/// expansion's own >= 1e-6 at any practical theta), in place of a square root and a division.
-template <bool kFull>
-__attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_block_avx512(
-    const QuadrupoleSources<double>& c, std::size_t j, __mmask8 live, __m512d vx, __m512d vy, __m512d vz, __m512d veps2,
-    __m512d& ax, __m512d& ay, __m512d& az, __m512d& phi) {
-  const __m512d one = _mm512_set1_pd(1.0);
-  const __m512d c15 = _mm512_set1_pd(1.5), c75 = _mm512_set1_pd(7.5), c3 = _mm512_set1_pd(3.0),
-                c05 = _mm512_set1_pd(0.5);
-  const __m512d rx = _mm512_sub_pd(vx, load_lanes<kFull>(c.cx + j, live));
-  const __m512d ry = _mm512_sub_pd(vy, load_lanes<kFull>(c.cy + j, live));
-  const __m512d rz = _mm512_sub_pd(vz, load_lanes<kFull>(c.cz + j, live));
-  const __m512d m = load_lanes<kFull>(c.cm + j, live);
-  const __m512d mxx = load_lanes<kFull>(c.qxx + j, live), mxy = load_lanes<kFull>(c.qxy + j, live),
-                mxz = load_lanes<kFull>(c.qxz + j, live), myy = load_lanes<kFull>(c.qyy + j, live),
-                myz = load_lanes<kFull>(c.qyz + j, live), mzz = load_lanes<kFull>(c.qzz + j, live);
-  __m512d r2 = _mm512_fmadd_pd(rz, rz, _mm512_fmadd_pd(ry, ry, _mm512_fmadd_pd(rx, rx, veps2)));
-  if constexpr (!kFull) r2 = _mm512_mask_mov_pd(one, live, r2);
-  const __m512d d1 = rsqrt_newton<1>(r2);
-  const __m512d d2 = _mm512_mul_pd(d1, d1);
-  const __m512d d3 = _mm512_mul_pd(d1, d2);
-  const __m512d d5 = _mm512_mul_pd(d3, d2);
-  const __m512d d7 = _mm512_mul_pd(d5, d2);
-  const __m512d mrx = _mm512_fmadd_pd(mxz, rz, _mm512_fmadd_pd(mxy, ry, _mm512_mul_pd(mxx, rx)));
-  const __m512d mry = _mm512_fmadd_pd(myz, rz, _mm512_fmadd_pd(myy, ry, _mm512_mul_pd(mxy, rx)));
-  const __m512d mrz = _mm512_fmadd_pd(mzz, rz, _mm512_fmadd_pd(myz, ry, _mm512_mul_pd(mxz, rx)));
-  const __m512d rmr = _mm512_fmadd_pd(rz, mrz, _mm512_fmadd_pd(ry, mry, _mm512_mul_pd(rx, mrx)));
-  const __m512d tr = _mm512_add_pd(_mm512_add_pd(mxx, myy), mzz);
-  // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
-  const __m512d radial =
-      _mm512_fmadd_pd(_mm512_mul_pd(c75, d7), rmr, _mm512_fnmadd_pd(_mm512_mul_pd(c15, d5), tr, _mm512_mul_pd(m, d3)));
-  const __m512d d5x3 = _mm512_mul_pd(c3, d5);
-  ax = _mm512_add_pd(ax, _mm512_fmsub_pd(radial, rx, _mm512_mul_pd(d5x3, mrx)));
-  ay = _mm512_add_pd(ay, _mm512_fmsub_pd(radial, ry, _mm512_mul_pd(d5x3, mry)));
-  az = _mm512_add_pd(az, _mm512_fmsub_pd(radial, rz, _mm512_mul_pd(d5x3, mrz)));
-  // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-  phi = _mm512_add_pd(phi, _mm512_fnmadd_pd(_mm512_mul_pd(c05, d3), tr,
-                                            _mm512_fmadd_pd(_mm512_mul_pd(c15, d5), rmr, _mm512_mul_pd(m, d1))));
-}
-
-__attribute__((target("avx512f"))) void m2p_quadrupole_avx512(const QuadrupoleSources<double>& c, std::size_t n,
-                                                              double xi, double yi, double zi, double eps2,
-                                                              Accum& acc) {
-  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
-  const __m512d veps2 = _mm512_set1_pd(eps2), zero = _mm512_setzero_pd();
-  __m512d ax = zero, ay = zero, az = zero, phi = zero;
-  std::size_t j = 0;
-  for (; j + 8 <= n; j += 8) m2p_quadrupole_block_avx512<true>(c, j, 0xff, vx, vy, vz, veps2, ax, ay, az, phi);
-  if (j < n) m2p_quadrupole_block_avx512<false>(c, j, tail_mask(n - j), vx, vy, vz, veps2, ax, ay, az, phi);
-  acc.ax += lane_sum(ax);
-  acc.ay += lane_sum(ay);
-  acc.az += lane_sum(az);
-  acc.phi += lane_sum(phi);
-}
-
 /// 1/sqrt(x) for x > 0 in single precision: VRSQRT14PS (relative error < 2^-14) and one Newton
 /// step (error ~(3/2) 2^-28 = 5.6e-9, below float's own rounding of 6e-8).
 __attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
@@ -307,66 +237,162 @@ __attribute__((target("avx512f"))) void p2p_single_avx512(const float* sx, const
   acc.phi += lane_sum_single(phi);
 }
 
-/// One block of sixteen float cells (kFull: all there; else the `live` lanes, absent ones
-/// loaded as mass and moments 0 with r2 = 1 for the 1/sqrt).
+/// Eight doubles from p (kFull), or its `live` lanes and zeros.
 template <bool kFull>
-__attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_single_block_avx512(
-    const QuadrupoleSources<float>& c, std::size_t j, __mmask16 live, __m512 vx, __m512 vy, __m512 vz, __m512 veps2,
-    __m512& ax, __m512& ay, __m512& az, __m512& phi) {
-  const __m512 one = _mm512_set1_ps(1.0F);
-  const __m512 c15 = _mm512_set1_ps(1.5F), c75 = _mm512_set1_ps(7.5F), c3 = _mm512_set1_ps(3.0F),
-               c05 = _mm512_set1_ps(0.5F);
-  const __m512 rx = _mm512_sub_ps(vx, load_lanes<kFull>(c.cx + j, live));
-  const __m512 ry = _mm512_sub_ps(vy, load_lanes<kFull>(c.cy + j, live));
-  const __m512 rz = _mm512_sub_ps(vz, load_lanes<kFull>(c.cz + j, live));
-  const __m512 m = load_lanes<kFull>(c.cm + j, live);
-  const __m512 mxx = load_lanes<kFull>(c.qxx + j, live), mxy = load_lanes<kFull>(c.qxy + j, live),
-               mxz = load_lanes<kFull>(c.qxz + j, live), myy = load_lanes<kFull>(c.qyy + j, live),
-               myz = load_lanes<kFull>(c.qyz + j, live), mzz = load_lanes<kFull>(c.qzz + j, live);
-  __m512 r2 = _mm512_fmadd_ps(rz, rz, _mm512_fmadd_ps(ry, ry, _mm512_fmadd_ps(rx, rx, veps2)));
-  if constexpr (!kFull) r2 = _mm512_mask_mov_ps(one, live, r2);
-  const __m512 d1 = rsqrt_newton_single(r2);
-  const __m512 d2 = _mm512_mul_ps(d1, d1);
-  const __m512 d3 = _mm512_mul_ps(d1, d2);
-  const __m512 d5 = _mm512_mul_ps(d3, d2);
-  const __m512 d7 = _mm512_mul_ps(d5, d2);
-  const __m512 mrx = _mm512_fmadd_ps(mxz, rz, _mm512_fmadd_ps(mxy, ry, _mm512_mul_ps(mxx, rx)));
-  const __m512 mry = _mm512_fmadd_ps(myz, rz, _mm512_fmadd_ps(myy, ry, _mm512_mul_ps(mxy, rx)));
-  const __m512 mrz = _mm512_fmadd_ps(mzz, rz, _mm512_fmadd_ps(myz, ry, _mm512_mul_ps(mxz, rx)));
-  const __m512 rmr = _mm512_fmadd_ps(rz, mrz, _mm512_fmadd_ps(ry, mry, _mm512_mul_ps(rx, mrx)));
-  const __m512 tr = _mm512_add_ps(_mm512_add_ps(mxx, myy), mzz);
-  // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
-  const __m512 radial =
-      _mm512_fmadd_ps(_mm512_mul_ps(c75, d7), rmr, _mm512_fnmadd_ps(_mm512_mul_ps(c15, d5), tr, _mm512_mul_ps(m, d3)));
-  const __m512 d5x3 = _mm512_mul_ps(c3, d5);
-  ax = _mm512_add_ps(ax, _mm512_fmsub_ps(radial, rx, _mm512_mul_ps(d5x3, mrx)));
-  ay = _mm512_add_ps(ay, _mm512_fmsub_ps(radial, ry, _mm512_mul_ps(d5x3, mry)));
-  az = _mm512_add_ps(az, _mm512_fmsub_ps(radial, rz, _mm512_mul_ps(d5x3, mrz)));
-  // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
-  phi = _mm512_add_ps(phi, _mm512_fnmadd_ps(_mm512_mul_ps(c05, d3), tr,
-                                            _mm512_fmadd_ps(_mm512_mul_ps(c15, d5), rmr, _mm512_mul_ps(m, d1))));
+__attribute__((target("avx512f"), always_inline)) inline __m512d load_lanes(const double* p, __mmask8 live) {
+  if constexpr (kFull) return _mm512_loadu_pd(p);
+  return _mm512_maskz_loadu_pd(live, p);
 }
 
-__attribute__((target("avx512f"))) void m2p_quadrupole_single_avx512(const float* cx, const float* cy, const float* cz,
-                                                                     const float* cm, const float* qxx,
-                                                                     const float* qxy, const float* qxz,
-                                                                     const float* qyy, const float* qyz,
-                                                                     const float* qzz, std::size_t n, float xi,
-                                                                     float yi, float zi, float eps2, Accum& acc) {
-  const QuadrupoleSources<float> c{cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz};
-  const __m512 vx = _mm512_set1_ps(xi), vy = _mm512_set1_ps(yi), vz = _mm512_set1_ps(zi);
-  const __m512 veps2 = _mm512_set1_ps(eps2), zero = _mm512_setzero_ps();
-  __m512 ax = zero, ay = zero, az = zero, phi = zero;
-  std::size_t j = 0;
-  for (; j + 16 <= n; j += 16)
-    m2p_quadrupole_single_block_avx512<true>(c, j, 0xffff, vx, vy, vz, veps2, ax, ay, az, phi);
-  if (j < n) {
-    m2p_quadrupole_single_block_avx512<false>(c, j, tail_mask16(n - j), vx, vy, vz, veps2, ax, ay, az, phi);
+/// The AVX-512 operations of the quadrupole kernel in each precision (8 double or 16 float lanes),
+/// so that one block function serves both; `rsqrt` is VRSQRT14 and one Newton step in both.
+template <typename Real>
+struct Avx512;
+
+template <>
+struct Avx512<double> {
+  using Vector = __m512d;
+  using Mask = __mmask8;
+  static constexpr std::size_t width = 8;
+  static constexpr Mask all = 0xff;
+  __attribute__((target("avx512f"), always_inline)) static Vector set1(double v) { return _mm512_set1_pd(v); }
+  __attribute__((target("avx512f"), always_inline)) static Vector add(Vector a, Vector b) {
+    return _mm512_add_pd(a, b);
   }
-  acc.ax += lane_sum_single(ax);
-  acc.ay += lane_sum_single(ay);
-  acc.az += lane_sum_single(az);
-  acc.phi += lane_sum_single(phi);
+  __attribute__((target("avx512f"), always_inline)) static Vector sub(Vector a, Vector b) {
+    return _mm512_sub_pd(a, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector mul(Vector a, Vector b) {
+    return _mm512_mul_pd(a, b);
+  }
+  /// a b + c, -(a b) + c and a b - c, each rounded once.
+  __attribute__((target("avx512f"), always_inline)) static Vector fmadd(Vector a, Vector b, Vector c) {
+    return _mm512_fmadd_pd(a, b, c);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector fnmadd(Vector a, Vector b, Vector c) {
+    return _mm512_fnmadd_pd(a, b, c);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector fmsub(Vector a, Vector b, Vector c) {
+    return _mm512_fmsub_pd(a, b, c);
+  }
+  /// b's lanes where `mask` is set, a's elsewhere.
+  __attribute__((target("avx512f"), always_inline)) static Vector blend(Vector a, Mask mask, Vector b) {
+    return _mm512_mask_mov_pd(a, mask, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) { return rsqrt_newton<1>(x); }
+  template <bool kFull>
+  __attribute__((target("avx512f"), always_inline)) static Vector load(const double* p, Mask live) {
+    return load_lanes<kFull>(p, live);
+  }
+  static Mask tail(std::size_t count) { return tail_mask(count); }
+  __attribute__((target("avx512f"), always_inline)) static double sum(Vector v) { return lane_sum(v); }
+};
+
+template <>
+struct Avx512<float> {
+  using Vector = __m512;
+  using Mask = __mmask16;
+  static constexpr std::size_t width = 16;
+  static constexpr Mask all = 0xffff;
+  __attribute__((target("avx512f"), always_inline)) static Vector set1(float v) { return _mm512_set1_ps(v); }
+  __attribute__((target("avx512f"), always_inline)) static Vector add(Vector a, Vector b) {
+    return _mm512_add_ps(a, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector sub(Vector a, Vector b) {
+    return _mm512_sub_ps(a, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector mul(Vector a, Vector b) {
+    return _mm512_mul_ps(a, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector fmadd(Vector a, Vector b, Vector c) {
+    return _mm512_fmadd_ps(a, b, c);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector fnmadd(Vector a, Vector b, Vector c) {
+    return _mm512_fnmadd_ps(a, b, c);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector fmsub(Vector a, Vector b, Vector c) {
+    return _mm512_fmsub_ps(a, b, c);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector blend(Vector a, Mask mask, Vector b) {
+    return _mm512_mask_mov_ps(a, mask, b);
+  }
+  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) { return rsqrt_newton_single(x); }
+  template <bool kFull>
+  __attribute__((target("avx512f"), always_inline)) static Vector load(const float* p, Mask live) {
+    return load_lanes<kFull>(p, live);
+  }
+  static Mask tail(std::size_t count) { return tail_mask16(count); }
+  __attribute__((target("avx512f"), always_inline)) static double sum(Vector v) { return lane_sum_single(v); }
+};
+
+/// The quadrupole kernel's arrays (cells' centres, masses, second moments).
+template <typename Real>
+struct QuadrupoleSources {
+  const Real *cx, *cy, *cz, *cm, *qxx, *qxy, *qxz, *qyy, *qyz, *qzz;
+};
+
+/// The quadrupole kernel's target and softening (broadcast) and running lane sums (a/(-G), phi/(-G)).
+template <typename Real>
+struct QuadrupoleLanes {
+  typename Avx512<Real>::Vector x, y, z, eps2, ax, ay, az, phi;
+};
+
+/// One block of cells from `j` (kFull: all `width` there; else the `live` lanes, absent ones loaded
+/// as mass and moments 0 with r2 = 1 for the 1/sqrt). Formulas in kernels.hpp; 1/sqrt(r^2 + eps2)
+/// from VRSQRT14 and one Newton step, as in p2p_approximate (in double a relative error < 5.6e-9,
+/// against the expansion's own >= 1e-6 at any practical theta), in place of a square root and a
+/// division.
+template <typename Real, bool kFull>
+__attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_block_avx512(
+    const QuadrupoleSources<Real>& c, std::size_t j, typename Avx512<Real>::Mask live, QuadrupoleLanes<Real>& l) {
+  using S = Avx512<Real>;
+  using V = typename S::Vector;
+  const V one = S::set1(Real(1)), c15 = S::set1(Real(1.5)), c75 = S::set1(Real(7.5)), c3 = S::set1(Real(3)),
+          c05 = S::set1(Real(0.5));
+  const V rx = S::sub(l.x, S::template load<kFull>(c.cx + j, live));
+  const V ry = S::sub(l.y, S::template load<kFull>(c.cy + j, live));
+  const V rz = S::sub(l.z, S::template load<kFull>(c.cz + j, live));
+  const V m = S::template load<kFull>(c.cm + j, live);
+  const V mxx = S::template load<kFull>(c.qxx + j, live), mxy = S::template load<kFull>(c.qxy + j, live),
+          mxz = S::template load<kFull>(c.qxz + j, live), myy = S::template load<kFull>(c.qyy + j, live),
+          myz = S::template load<kFull>(c.qyz + j, live), mzz = S::template load<kFull>(c.qzz + j, live);
+  V r2 = S::fmadd(rz, rz, S::fmadd(ry, ry, S::fmadd(rx, rx, l.eps2)));
+  if constexpr (!kFull) r2 = S::blend(one, live, r2);
+  const V d1 = S::rsqrt(r2);
+  const V d2 = S::mul(d1, d1);
+  const V d3 = S::mul(d1, d2);
+  const V d5 = S::mul(d3, d2);
+  const V d7 = S::mul(d5, d2);
+  const V mrx = S::fmadd(mxz, rz, S::fmadd(mxy, ry, S::mul(mxx, rx)));
+  const V mry = S::fmadd(myz, rz, S::fmadd(myy, ry, S::mul(mxy, rx)));
+  const V mrz = S::fmadd(mzz, rz, S::fmadd(myz, ry, S::mul(mxz, rx)));
+  const V rmr = S::fmadd(rz, mrz, S::fmadd(ry, mry, S::mul(rx, mrx)));
+  const V tr = S::add(S::add(mxx, myy), mzz);
+  // radial = m D^3 - 3/2 D^5 trM + 15/2 D^7 rMr
+  const V radial = S::fmadd(S::mul(c75, d7), rmr, S::fnmadd(S::mul(c15, d5), tr, S::mul(m, d3)));
+  const V d5x3 = S::mul(c3, d5);
+  l.ax = S::add(l.ax, S::fmsub(radial, rx, S::mul(d5x3, mrx)));
+  l.ay = S::add(l.ay, S::fmsub(radial, ry, S::mul(d5x3, mry)));
+  l.az = S::add(l.az, S::fmsub(radial, rz, S::mul(d5x3, mrz)));
+  // phi = m D + 3/2 D^5 rMr - 1/2 D^3 trM
+  l.phi = S::add(l.phi, S::fnmadd(S::mul(c05, d3), tr, S::fmadd(S::mul(c15, d5), rmr, S::mul(m, d1))));
+}
+
+/// The quadrupole kernel over n cells: full blocks, then the rest; the lanes' sums added to acc
+/// in double.
+template <typename Real>
+__attribute__((target("avx512f"))) void m2p_quadrupole_avx512(const QuadrupoleSources<Real>& c, std::size_t n, Real xi,
+                                                              Real yi, Real zi, Real eps2, Accum& acc) {
+  using S = Avx512<Real>;
+  const typename S::Vector zero = S::set1(Real(0));
+  QuadrupoleLanes<Real> l{S::set1(xi), S::set1(yi), S::set1(zi), S::set1(eps2), zero, zero, zero, zero};
+  std::size_t j = 0;
+  for (; j + S::width <= n; j += S::width) m2p_quadrupole_block_avx512<Real, true>(c, j, S::all, l);
+  if (j < n) m2p_quadrupole_block_avx512<Real, false>(c, j, S::tail(n - j), l);
+  acc.ax += S::sum(l.ax);
+  acc.ay += S::sum(l.ay);
+  acc.az += S::sum(l.az);
+  acc.phi += S::sum(l.phi);
 }
 
 }  // namespace
@@ -514,7 +540,7 @@ void m2p_quadrupole(const double* cx, const double* cy, const double* cz, const 
                     std::size_t n, double xi, double yi, double zi, double eps2, Accum& acc) {
 #ifdef RUBBLE_GRAVITY_AVX512
   if (cpu_has_avx512())
-    return m2p_quadrupole_avx512({cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz}, n, xi, yi, zi, eps2, acc);
+    return m2p_quadrupole_avx512<double>({cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz}, n, xi, yi, zi, eps2, acc);
 #endif
   m2p_quadrupole_portable(cx, cy, cz, cm, qxx, qxy, qxz, qyy, qyz, qzz, n, xi, yi, zi, eps2, acc);
 }
@@ -542,8 +568,9 @@ void m2p_quadrupole_single(const float* cx, const float* cy, const float* cz, co
     const std::size_t count = std::min(kFloatBlock, n - b);
 #ifdef RUBBLE_GRAVITY_AVX512
     if (cpu_has_avx512()) {
-      m2p_quadrupole_single_avx512(cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b,
-                                   count, xi, yi, zi, eps2, acc);
+      m2p_quadrupole_avx512<float>(
+          {cx + b, cy + b, cz + b, cm + b, qxx + b, qxy + b, qxz + b, qyy + b, qyz + b, qzz + b}, count, xi, yi, zi,
+          eps2, acc);
       continue;
     }
 #endif
