@@ -68,9 +68,6 @@ __attribute__((target("avx512f"))) inline double lane_sum(__m512d v) {
   return ((t[0] + t[1]) + (t[2] + t[3])) + ((t[4] + t[5]) + (t[6] + t[7]));
 }
 
-/// Mask of the first `count` (< 8) lanes.
-inline __mmask8 tail_mask(std::size_t count) { return static_cast<__mmask8>((1u << count) - 1u); }
-
 /// 1/sqrt(x) for x > 0 in single precision: VRSQRT14PS (relative error < 2^-14) and one Newton
 /// step (error ~(3/2) 2^-28 = 5.6e-9, below float's own rounding of 6e-8).
 __attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
@@ -78,9 +75,6 @@ __attribute__((target("avx512f"))) inline __m512 rsqrt_newton_single(__m512 x) {
   const __m512 y = _mm512_maskz_rsqrt14_ps(static_cast<__mmask16>(0xffff), x);
   return _mm512_mul_ps(y, _mm512_fnmadd_ps(half_x, _mm512_mul_ps(y, y), _mm512_set1_ps(1.5F)));
 }
-
-/// Mask of the first `count` (< 16) float lanes.
-inline __mmask16 tail_mask16(std::size_t count) { return static_cast<__mmask16>((1u << count) - 1u); }
 
 /// Sum of the 16 float lanes of v in double: widened, lane k added to lane k + 8, then lane_sum.
 __attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
@@ -93,22 +87,8 @@ __attribute__((target("avx512f"))) inline double lane_sum_single(__m512 v) {
   return lane_sum(sum);
 }
 
-/// Sixteen floats from p (kFull), or its `live` lanes and zeros.
-template <bool kFull>
-__attribute__((target("avx512f"), always_inline)) inline __m512 load_lanes(const float* p, __mmask16 live) {
-  if constexpr (kFull) return _mm512_loadu_ps(p);
-  return _mm512_maskz_loadu_ps(live, p);
-}
-
-/// Eight doubles from p (kFull), or its `live` lanes and zeros.
-template <bool kFull>
-__attribute__((target("avx512f"), always_inline)) inline __m512d load_lanes(const double* p, __mmask8 live) {
-  if constexpr (kFull) return _mm512_loadu_pd(p);
-  return _mm512_maskz_loadu_pd(live, p);
-}
-
-/// The AVX-512 operations of the quadrupole kernel in each precision (8 double or 16 float lanes),
-/// so that one block function serves both; `rsqrt` is VRSQRT14 and one Newton step in both.
+/// The AVX-512 operations of the particle and quadrupole kernels in each precision (8 double or 16
+/// float lanes), so that one block function of each kernel serves both.
 template <typename Real>
 struct Avx512;
 
@@ -142,9 +122,9 @@ struct Avx512<double> {
   __attribute__((target("avx512f"), always_inline)) static Vector blend(Vector a, Mask mask, Vector b) {
     return _mm512_mask_mov_pd(a, mask, b);
   }
-  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) { return rsqrt_newton<1>(x); }
+  /// 1/sqrt(x): VRSQRT14 and kNewtonSteps Newton steps.
   template <int kNewtonSteps>
-  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt_steps(Vector x) {
+  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) {
     return rsqrt_newton<kNewtonSteps>(x);
   }
   /// The lanes where v > 0 (of the `live` ones unless kFull).
@@ -157,11 +137,14 @@ struct Avx512<double> {
   __attribute__((target("avx512f"), always_inline)) static Vector zero_unless(Mask mask, Vector v) {
     return _mm512_maskz_mov_pd(mask, v);
   }
+  /// `width` values from p (kFull), or its `live` lanes and zeros.
   template <bool kFull>
   __attribute__((target("avx512f"), always_inline)) static Vector load(const double* p, Mask live) {
-    return load_lanes<kFull>(p, live);
+    if constexpr (kFull) return _mm512_loadu_pd(p);
+    return _mm512_maskz_loadu_pd(live, p);
   }
-  static Mask tail(std::size_t count) { return tail_mask(count); }
+  /// The first `count` (< width) lanes.
+  static Mask tail(std::size_t count) { return static_cast<Mask>((1u << count) - 1u); }
   __attribute__((target("avx512f"), always_inline)) static double sum(Vector v) { return lane_sum(v); }
 };
 
@@ -193,9 +176,8 @@ struct Avx512<float> {
   __attribute__((target("avx512f"), always_inline)) static Vector blend(Vector a, Mask mask, Vector b) {
     return _mm512_mask_mov_ps(a, mask, b);
   }
-  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) { return rsqrt_newton_single(x); }
   template <int kNewtonSteps>
-  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt_steps(Vector x) {
+  __attribute__((target("avx512f"), always_inline)) static Vector rsqrt(Vector x) {
     static_assert(kNewtonSteps == 1, "float's 1/sqrt takes one Newton step (float's own precision)");
     return rsqrt_newton_single(x);
   }
@@ -209,9 +191,10 @@ struct Avx512<float> {
   }
   template <bool kFull>
   __attribute__((target("avx512f"), always_inline)) static Vector load(const float* p, Mask live) {
-    return load_lanes<kFull>(p, live);
+    if constexpr (kFull) return _mm512_loadu_ps(p);
+    return _mm512_maskz_loadu_ps(live, p);
   }
-  static Mask tail(std::size_t count) { return tail_mask16(count); }
+  static Mask tail(std::size_t count) { return static_cast<Mask>((1u << count) - 1u); }
   __attribute__((target("avx512f"), always_inline)) static double sum(Vector v) { return lane_sum_single(v); }
 };
 
@@ -256,7 +239,7 @@ __attribute__((target("avx512f"), always_inline)) inline void p2p_block_avx512(c
     // its 1/sqrt is inf, the Newton steps make it NaN, and the mask makes it 0.
     valid[t] = S::template positive<kFull>(r2[t], live);
   }
-  for (int t = 0; t < kTargets; ++t) inv[t] = S::zero_unless(valid[t], S::template rsqrt_steps<kNewtonSteps>(r2[t]));
+  for (int t = 0; t < kTargets; ++t) inv[t] = S::zero_unless(valid[t], S::template rsqrt<kNewtonSteps>(r2[t]));
   for (int t = 0; t < kTargets; ++t) {
     const V m_inv = S::mul(m, inv[t]);
     const V m_inv3 = S::mul(m_inv, S::mul(inv[t], inv[t]));
@@ -341,7 +324,7 @@ __attribute__((target("avx512f"), always_inline)) inline void m2p_quadrupole_blo
           myz = S::template load<kFull>(c.qyz + j, live), mzz = S::template load<kFull>(c.qzz + j, live);
   V r2 = S::fmadd(rz, rz, S::fmadd(ry, ry, S::fmadd(rx, rx, l.eps2)));
   if constexpr (!kFull) r2 = S::blend(one, live, r2);
-  const V d1 = S::rsqrt(r2);
+  const V d1 = S::template rsqrt<1>(r2);
   const V d2 = S::mul(d1, d1);
   const V d3 = S::mul(d1, d2);
   const V d5 = S::mul(d3, d2);
