@@ -16,11 +16,12 @@ inline double tangential_norm(const Vec3& x) { return std::sqrt(x.y() * x.y() + 
 /// Euclidean projection of x onto the cone K_mu = {||x_T|| <= mu x_n}.
 inline Vec3 project_onto_coulomb_cone(const Vec3& x, double mu) {
   const double normal = x.x();
-  const double tangential = tangential_norm(x);
+  const double tangential_squared = x.y() * x.y() + x.z() * x.z();
   // Inside K; normal >= 0 matters for mu = 0 only, whose K is the half-line x_T = 0, x_n >= 0
   // (without it (-1, 0, 0) counted as inside, and an open frictionless contact with no tangential
   // velocity at all had the natural map u_n instead of 0).
-  if (tangential <= mu * normal && normal >= 0.0) return x;
+  if (normal >= 0.0 && tangential_squared <= (mu * normal) * (mu * normal)) return x;
+  const double tangential = std::sqrt(tangential_squared);
   if (mu * tangential <= -normal) return Vec3::Zero();  // inside the polar cone -K*
   const double projected_normal = (normal + mu * tangential) / (1.0 + mu * mu);
   const double scale = mu * projected_normal / tangential;

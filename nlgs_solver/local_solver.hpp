@@ -1,6 +1,9 @@
 #pragma once
 // The local problem of one contact, solved exactly (the kernel of every NLGS sweep).
+#include <cmath>
+
 #include "core/math.hpp"
+#include "nlgs_solver/coulomb.hpp"
 
 namespace rubble {
 
@@ -9,6 +12,14 @@ struct LocalSolution {
   Vec3 impulse = Vec3::Zero();                                          ///< r = (r_n, r_t, r_s)
   enum class Regime { open, sticking, sliding } regime = Regime::open;  ///< which branch of the law holds
 };
+
+/// Whether W's tangential block is isotropic and uncoupled from the normal row (W_nT = 0,
+/// W_TT = w I, to 1e-12 of the diagonal): the block of two spheres, or of a sphere and a wall,
+/// whose arms lie along the normal. Rounding leaves their off-diagonal terms at ~1e-17 of it.
+inline bool isotropic_tangential_block(const Mat3& W) {
+  return std::abs(W(0, 1)) + std::abs(W(0, 2)) <= 1e-12 * W(0, 0) &&
+         std::abs(W(1, 2)) + std::abs(W(1, 1) - W(2, 2)) <= 1e-12 * W(1, 1);
+}
 
 /// Finds r such that u = W r + u_free satisfies Signorini-Coulomb on this contact alone:
 ///   0 <= r_n _|_ u_n >= 0,  ||r_T|| <= mu r_n,  and r_T = -mu r_n u_T/||u_T|| when u_T != 0.
@@ -24,5 +35,66 @@ LocalSolution solve_local_contact(const Mat3& delassus, const Vec3& free_velocit
 /// sticking test. `delassus_inverse` must be delassus.inverse() for the result to be the same bits.
 LocalSolution solve_local_contact(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
                                   double friction_coefficient);
+
+/// The same solve, the sliding Newton started from the slip direction of `guess` (-r_T/||r_T||)
+/// when it has a tangential part: a sweep passes the contact's current impulse. The same solution
+/// to the Newton's tolerance, not the same bits.
+LocalSolution solve_local_contact(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
+                                  double friction_coefficient, const Vec3& guess);
+
+/// A sweep's update of one contact: its new impulse and the change from the current one.
+struct LocalUpdate {
+  Vec3 impulse;  ///< r_k after the update
+  Vec3 change;   ///< impulse - r_k before: what the bodies' velocities receive
+};
+
+/// The sweep's update of a contact with impulse r, local velocity u and free velocity
+/// u_free = u - W r: the local solution (solve_local_contact), relaxed by omega and, when
+/// omega > 1, projected back onto the cone (projected SOR, Cryer 1971: over-relaxation steps past
+/// the local solution and can leave the cone; under-relaxation mixes two admissible points). The
+/// commonest regimes (sticking, frictionless, sliding on an isotropic block) are inline and
+/// written from u rather than u_free: r - W^-1 u is the sticking impulse, so a sticking contact's
+/// change is -omega W^-1 u, the shortest chain of operations from the bodies' velocities back to
+/// them (a sweep is such a chain: each contact reads the velocities the one before wrote;
+/// nlgs_solver/README.md, "The local solver"). Other sliding contacts are solved by Newton from
+/// the current impulse's slip direction.
+[[gnu::always_inline]] inline LocalUpdate relaxed_local_update(const Mat3& W, const Mat3& W_inverse, const Vec3& r,
+                                                               const Vec3& u, const Vec3& u_free, double mu,
+                                                               double relaxation) {
+  const Vec3 step = W_inverse * u;
+  LocalUpdate update{Vec3::Zero(), Vec3::Zero()};  // open: separating without any impulse
+  bool sticks = false;
+  if (u_free.x() < 0.0) {
+    const Vec3 stick = r - step;
+    const double stick_tangential_squared = stick.y() * stick.y() + stick.z() * stick.z();
+    if (stick.x() > 0.0 && stick_tangential_squared <= (mu * stick.x()) * (mu * stick.x())) {
+      sticks = true;
+    } else if (mu == 0.0) {
+      // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0 (solve_local_contact's).
+      update.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
+    } else if (stick.x() > 0.0 && stick_tangential_squared > 0.0 && isotropic_tangential_block(W)) {
+      // Sliding on a sphere's block: solve_local_contact's closed form.
+      const double scale = mu * stick.x() / std::sqrt(stick_tangential_squared);
+      update.impulse = Vec3(stick.x(), scale * stick.y(), scale * stick.z());
+    } else {
+      update.impulse = solve_local_contact(W, W_inverse, u_free, mu, r).impulse;
+    }
+  }
+  if (sticks) {
+    update.change = -relaxation * step;
+    update.impulse = r + update.change;
+  } else {
+    if (relaxation != 1.0) update.impulse = relaxation * update.impulse + (1.0 - relaxation) * r;
+    update.change = update.impulse - r;
+  }
+  if (relaxation > 1.0) {
+    const Vec3 projected = project_onto_coulomb_cone(update.impulse, mu);
+    if (projected != update.impulse) {
+      update.impulse = projected;
+      update.change = projected - r;
+    }
+  }
+  return update;
+}
 
 }  // namespace rubble

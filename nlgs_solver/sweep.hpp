@@ -53,19 +53,13 @@ SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, dou
     // rho = W_nn puts the residual in velocity units, independent of the mass scale.
     result.residual_squared += natural_map(r, u, mu, W(0, 0)).squaredNorm();
     const Vec3 free_velocity = u - W * r;  // what u would be without this contact's impulse
-    Vec3 next = solve_local_contact(W, problem.delassus_inverse(k), free_velocity, mu).impulse;
-    if (relaxation != 1.0) {
-      next = relaxation * next + (1.0 - relaxation) * r;
-      // Over-relaxation steps past the local solution and can leave the cone; projected SOR
-      // (Cryer 1971) keeps every iterate admissible. Under-relaxation mixes two admissible points.
-      if (relaxation > 1.0) next = project_onto_coulomb_cone(next, mu);
-    }
-    const Vec3 delta = next - r;
-    r = next;
-    result.impulse_squared += (W(0, 0) * next).squaredNorm();
-    problem.apply_impulse_change(k, delta);
-    if constexpr (requires { problem.note_visit(k, u, free_velocity, next); }) {
-      problem.note_visit(k, u, free_velocity, next);
+    const LocalUpdate update =
+        relaxed_local_update(W, problem.delassus_inverse(k), r, u, free_velocity, mu, relaxation);
+    r = update.impulse;
+    result.impulse_squared += (W(0, 0) * update.impulse).squaredNorm();
+    problem.apply_impulse_change(k, update.change);
+    if constexpr (requires { problem.note_visit(k, u, free_velocity, update.impulse); }) {
+      problem.note_visit(k, u, free_velocity, update.impulse);
     }
     if constexpr (requires { problem.resist_rotation(k, result); }) problem.resist_rotation(k, result);
   }

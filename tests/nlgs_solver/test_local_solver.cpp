@@ -84,6 +84,31 @@ TEST(LocalSolver, ZeroesTheNaturalMapOnRandomCoupledBlocks) {
   EXPECT_GT(sliding, 1000);  // the sliding branch was exercised
 }
 
+// The Newton started from a guess's slip direction (what a sweep passes: the current impulse)
+// must still zero the natural map, whatever the guess: near the solution, opposite to it, or
+// along the normal only (no direction: the sticking trial's).
+TEST(LocalSolver, ZeroesTheNaturalMapFromAnyGuess) {
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int sliding = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const Mat3 W = random_delassus(rng, k % 2 ? 0.3 : 1.0);
+    const Vec3 q(u(rng), u(rng), u(rng));
+    const double mu = std::abs(u(rng));
+    const LocalSolution plain = solve_local_contact(W, q, mu);
+    const Vec3 guesses[] = {plain.impulse + 0.1 * Vec3(u(rng), u(rng), u(rng)), -plain.impulse, Vec3(1.0, 0.0, 0.0),
+                            Vec3(u(rng), u(rng), u(rng))};
+    for (const Vec3& guess : guesses) {
+      const LocalSolution s = solve_local_contact(W, W.inverse(), q, mu, guess);
+      ASSERT_LT(natural_map(s.impulse, W * s.impulse + q, mu).norm(), 1e-9 * (1.0 + q.norm()))
+          << "case " << k << " guess " << guess.transpose();
+      ASSERT_EQ(s.regime, plain.regime) << "case " << k;
+    }
+    sliding += plain.regime == LocalSolution::Regime::sliding;
+  }
+  EXPECT_GT(sliding, 1000);
+}
+
 // Sphere blocks (W_nT = 0, W_TT = w I, up to rounding-sized off-diagonal terms) take the closed
 // form; the same blocks made anisotropic by 1e-8 take the Newton path. Both must zero the natural
 // map and agree to the size of that anisotropy.
@@ -111,6 +136,47 @@ TEST(LocalSolver, ClosedFormOnIsotropicBlocksAgreesWithTheNewtonPath) {
     sliding += closed.regime == LocalSolution::Regime::sliding;
   }
   EXPECT_GT(sliding, 1000);
+}
+
+// The sweep's inline update (relaxed_local_update) against the law and the local solver: at
+// omega = 1 its impulse zeroes the natural map of the local problem u = W r' + u_free; at omega =
+// 1.5 it is the relaxed solution projected onto the cone; its change is the impulse less r. Blocks
+// coupled and isotropic (the inline sliding form), friction 0 (the inline frictionless form) to 1,
+// from admissible current impulses.
+TEST(LocalSolver, SweepUpdateIsTheRelaxedLocalSolution) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int regimes[3] = {0, 0, 0};
+  for (int k = 0; k < 20000; ++k) {
+    Mat3 W = random_delassus(rng, 0.5);
+    if (k % 2 == 1) {  // a sphere's block, as rounding leaves it
+      W = Mat3::Zero();
+      W(0, 0) = 1.0 + 0.9 * u(rng);
+      W(1, 1) = W(2, 2) = 3.5 * (1.0 + 0.9 * u(rng));
+      W(0, 1) = W(1, 0) = 1e-17 * u(rng);
+    }
+    const double mu = k % 5 == 0 ? 0.0 : std::abs(u(rng));
+    const Vec3 r = project_onto_coulomb_cone(Vec3(u(rng), u(rng), u(rng)), mu);  // the current impulse
+    const Vec3 velocity(u(rng), u(rng), u(rng));                                 // u for that impulse
+    const Vec3 u_free = velocity - W * r;
+    const Mat3 W_inverse = W.inverse();
+    const double scale = 1.0 + u_free.norm() + r.norm();
+
+    const LocalUpdate plain = relaxed_local_update(W, W_inverse, r, velocity, u_free, mu, 1.0);
+    const LocalSolution exact = solve_local_contact(W, W_inverse, u_free, mu);
+    ASSERT_LT(natural_map(plain.impulse, W * plain.impulse + u_free, mu).norm(), 1e-9 * scale) << "case " << k;
+    ASSERT_LT((plain.impulse - exact.impulse).norm(), 1e-9 * scale) << "case " << k;
+    ASSERT_LT((plain.change - (plain.impulse - r)).norm(), 1e-14 * scale) << "case " << k;
+    ++regimes[static_cast<int>(exact.regime)];
+
+    const LocalUpdate relaxed = relaxed_local_update(W, W_inverse, r, velocity, u_free, mu, 1.5);
+    const Vec3 expected = project_onto_coulomb_cone(1.5 * exact.impulse - 0.5 * r, mu);
+    ASSERT_LT((relaxed.impulse - expected).norm(), 1e-9 * scale) << "case " << k;
+    ASSERT_LT((relaxed.change - (relaxed.impulse - r)).norm(), 1e-14 * scale) << "case " << k;
+    const Vec3 projected = project_onto_coulomb_cone(relaxed.impulse, mu);
+    ASSERT_LT((projected - relaxed.impulse).norm(), 1e-14 * scale) << "case " << k;  // admissible
+  }
+  for (const int count : regimes) EXPECT_GT(count, 1000);  // open, sticking and sliding all met
 }
 
 }  // namespace

@@ -206,9 +206,10 @@ struct ReferenceProblem {
   Vec3 local_velocity(std::size_t k) const {
     const Contact& c = contacts[k];
     const std::size_t a = c.id.body_a, b = c.id.body_b;
-    const Vec3 relative = velocity.linear[b] + velocity.angular[b].cross(c.arm_b) - velocity.linear[a] -
-                          velocity.angular[a].cross(c.arm_a);
-    Vec3 u = c.frame.transpose() * relative;
+    // The compact problem's arithmetic (the same evaluation order), on the contact list and the
+    // body arrays instead of the copy.
+    Vec3 u = relative_local_velocity(c.frame, c.arm_a, c.arm_b, velocity.linear[a], velocity.angular[a],
+                                     velocity.linear[b], velocity.angular[b]);
     u.x() -= c.normal_velocity_target;
     return u;
   }
@@ -218,11 +219,11 @@ struct ReferenceProblem {
     const Vec3 p = c.frame * delta;
     if (!model.is_fixed(b)) {
       velocity.linear[b] += model.inverse_mass[b] * p;
-      velocity.angular[b] += inverse_inertia[b] * c.arm_b.cross(p);
+      velocity.angular[b] += inverse_inertia[b] * (levers(c.arm_b, c.frame) * delta);
     }
     if (!model.is_fixed(a)) {
       velocity.linear[a] -= model.inverse_mass[a] * p;
-      velocity.angular[a] -= inverse_inertia[a] * c.arm_a.cross(p);
+      velocity.angular[a] -= inverse_inertia[a] * (levers(c.arm_a, c.frame) * delta);
     }
   }
 };
