@@ -426,6 +426,10 @@ void collide_sphere_polyhedron(const Model& model, const State& state, std::uint
       face = static_cast<int>(f);
     }
   }
+  // The polyhedron lies behind each of its face planes, so the deepest plane's distance bounds the
+  // centre's distance to it from below: a pair beyond the alert distance by that bound needs no
+  // closest point (GJK was 9 % of a step of LMGC90's mixed deposit, most of it on such pairs).
+  if (signed_distance - radius >= alert_distance) return;
   Vec3 normal_body = shape.face_normals[static_cast<std::size_t>(face)];
   Vec3 surface = centre - signed_distance * normal_body;
   double distance = signed_distance;
