@@ -23,9 +23,9 @@ namespace rubble {
 
 /// std::nextafter(x, +infinity) without the library call, which note_visit made three times for
 /// every point a sweep leaves open (1.2 % of the samples of a step of the mixed deposit; the gain
-/// is within the noise of a whole run): the next float above x,
-/// by its bit pattern (IEEE 754 orders the patterns of each sign). NaN and +infinity are returned
-/// as they are, and both zeros go to the smallest subnormal, as nextafter does.
+/// is within the noise of a whole run): the next float above x by its bit pattern (IEEE 754
+/// orders the patterns of each sign). NaN and +infinity are returned as they are, and both zeros
+/// go to the smallest subnormal, as nextafter does.
 inline float float_above(float x) {
   if (std::isnan(x) || x == std::numeric_limits<float>::infinity()) return x;
   if (x == 0.0F) return std::numeric_limits<float>::denorm_min();
