@@ -140,63 +140,35 @@ LocalSolution solve_local_contact(const Mat3& W, const Vec3& u_free, double mu) 
   return solve_local_contact(W, W.inverse(), u_free, mu);
 }
 
-LocalSolution solve_local_contact(const Mat3& W, const Mat3& W_inverse, const Vec3& u_free, double mu) {
-  return solve_local_contact(W, W_inverse, u_free, mu, Vec3::Zero());
-}
-
 LocalSolution solve_local_contact(const Mat3& W, const Mat3& W_inverse, const Vec3& u_free, double mu,
                                   const Vec3& guess) {
-  LocalSolution solution;
-  if (u_free.x() >= 0.0) return solution;  // separating without any impulse: open
+  if (u_free.x() >= 0.0) return LocalSolution{};  // separating without any impulse: open
+  return solve_from_sticking_trial(W, W_inverse, u_free, -(W_inverse * u_free), mu, guess);
+}
 
-  // Sticking: u = 0.
-  const Vec3 stick = -(W_inverse * u_free);
-  const double stick_tangential_squared = stick.y() * stick.y() + stick.z() * stick.z();
-  if (stick.x() > 0.0 && stick_tangential_squared <= (mu * stick.x()) * (mu * stick.x())) {
-    solution.impulse = stick;
-    solution.regime = LocalSolution::Regime::sticking;
-    return solution;
-  }
-  solution.regime = LocalSolution::Regime::sliding;
-  const double stick_tangential = std::sqrt(stick_tangential_squared);
-  if (mu == 0.0) {
-    // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
-    solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
-    return solution;
-  }
-  // Sliding with an isotropic block: u_T = w r_T + u_free_T is along u_free_T whatever r_n, so the
-  // slip direction is d = u_free_T/||u_free_T|| = -stick_T/||stick_T|| and r_n = -u_free_n/W_nn
-  // (= stick_n > 0), outside the cone (||stick_T|| > mu r_n) since it did not stick. Closed form:
-  // 12 ns a solve on sphere blocks against 69 by the Newton below (a microbenchmark), which takes
-  // two sliding candidates to confirm the same direction; 85 % of the sliding solves of the mixed
-  // deposit are of this kind (bench/RESULTS.md, "Sliding in closed form").
-  if (stick_tangential > 0.0 && isotropic_tangential_block(W)) {
-    const double r_n = -u_free.x() / W(0, 0);
-    const double scale = mu * r_n / stick_tangential;
-    solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
-    return solution;
-  }
-  // Sliding: friction opposes the slip, so start from the direction opposite to the sticking
-  // impulse's tangential part (or the free slip direction).
-  Vec2 d = stick_tangential > 0.0 ? Vec2(-stick.y() / stick_tangential, -stick.z() / stick_tangential)
-                                  : Vec2(u_free.y(), u_free.z()).normalized();
-  if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
-  // A guess's slip direction is better still when it converges: in a sweep, the contact's
+Vec3 slide_on_coupled_block(const Mat3& W, const Mat3& W_inverse, const Vec3& u_free, double mu, const Vec3& guess) {
+  Vec3 impulse;
+  // A guess's slip direction is the best start when it converges: in a sweep, the contact's
   // current impulse, which the sweeps before have brought near the solution (3.5 -> 2.0 Newton
   // iterations a solve on the mixed deposit: bench/RESULTS.md, "The sweep's chain shortened").
   const double guess_tangential = tangential_norm(guess);
   if (guess_tangential > 0.0 &&
-      slide_by_newton(W, u_free, mu, Vec2(-guess.y() / guess_tangential, -guess.z() / guess_tangential),
-                      solution.impulse)) {
-    return solution;
+      slide_by_newton(W, u_free, mu, Vec2(-guess.y() / guess_tangential, -guess.z() / guess_tangential), impulse)) {
+    return impulse;
   }
-  if (slide_by_newton(W, u_free, mu, d, solution.impulse)) return solution;
-  if (slide_by_angle_scan(W, u_free, mu, solution.impulse)) return solution;
+  // Else friction opposes the slip, so start from the direction opposite to the sticking trial's
+  // tangential part (or the free slip direction).
+  const Vec3 stick = -(W_inverse * u_free);
+  const double stick_tangential = tangential_norm(stick);
+  Vec2 d = stick_tangential > 0.0 ? Vec2(-stick.y() / stick_tangential, -stick.z() / stick_tangential)
+                                  : Vec2(u_free.y(), u_free.z()).normalized();
+  if (!d.allFinite() || d.norm() < 0.5) d = Vec2(1.0, 0.0);
+  if (slide_by_newton(W, u_free, mu, d, impulse)) return impulse;
+  if (slide_by_angle_scan(W, u_free, mu, impulse)) return impulse;
   // Degenerate block: fall back to the projection of the sticking impulse onto the cone.
   const double r_n = std::max(stick.x(), 0.0);
   const double scale = stick_tangential > 0.0 ? mu * r_n / stick_tangential : 0.0;
-  solution.impulse = Vec3(r_n, scale * stick.y(), scale * stick.z());
-  return solution;
+  return Vec3(r_n, scale * stick.y(), scale * stick.z());
 }
 
 }  // namespace rubble

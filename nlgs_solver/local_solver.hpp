@@ -33,14 +33,45 @@ LocalSolution solve_local_contact(const Mat3& delassus, const Vec3& free_velocit
 /// The same solve with W^-1 given: the sweeps solve each contact hundreds of times a step with the
 /// same W, so they invert it once (CompactProblem::Point::delassus_inverse) instead of in every
 /// sticking test. `delassus_inverse` must be delassus.inverse() for the result to be the same bits.
+/// `guess` (a sweep passes the contact's current impulse): where it has a tangential part, the
+/// sliding Newton starts from its slip direction -r_T/||r_T|| (the same solution to the Newton's
+/// tolerance, not the same bits).
 LocalSolution solve_local_contact(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
-                                  double friction_coefficient);
+                                  double friction_coefficient, const Vec3& guess = Vec3::Zero());
 
-/// The same solve, the sliding Newton started from the slip direction of `guess` (-r_T/||r_T||)
-/// when it has a tangential part: a sweep passes the contact's current impulse. The same solution
-/// to the Newton's tolerance, not the same bits.
-LocalSolution solve_local_contact(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
-                                  double friction_coefficient, const Vec3& guess);
+/// The sliding solution on a coupled block (W_nT != 0 or W_TT anisotropic), out of line: Newton on
+/// the slip direction's angle from `guess`'s slip direction, then from that of the sticking trial
+/// -W^-1 u_free, then the bracketed angle scan; that trial projected onto the cone for a
+/// degenerate block.
+Vec3 slide_on_coupled_block(const Mat3& delassus, const Mat3& delassus_inverse, const Vec3& free_velocity,
+                            double friction_coefficient, const Vec3& guess);
+
+/// The law's solution for a closing contact (free_velocity,n < 0) from its sticking trial `stick`,
+/// the impulse that makes u = 0 (-W^-1 u_free, or r - W^-1 u in a sweep): sticking when it lies
+/// in the cone; else sliding, in closed form when frictionless or when the block is isotropic,
+/// otherwise slide_on_coupled_block. Inline, as the sweeps' commonest regimes.
+inline LocalSolution solve_from_sticking_trial(const Mat3& W, const Mat3& W_inverse, const Vec3& u_free,
+                                               const Vec3& stick, double mu, const Vec3& guess) {
+  LocalSolution solution{stick, LocalSolution::Regime::sticking};
+  const double stick_tangential_squared = stick.y() * stick.y() + stick.z() * stick.z();
+  if (stick.x() > 0.0 && stick_tangential_squared <= (mu * stick.x()) * (mu * stick.x())) return solution;
+  solution.regime = LocalSolution::Regime::sliding;
+  if (mu == 0.0) {
+    // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0.
+    solution.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
+  } else if (stick.x() > 0.0 && stick_tangential_squared > 0.0 && isotropic_tangential_block(W)) {
+    // Sliding with an isotropic block: u_T = w r_T + u_free_T is along u_free_T whatever r_n, so
+    // the slip direction is d = -stick_T/||stick_T|| and r_n = stick_n (= -u_free_n/W_nn), outside
+    // the cone since it did not stick. Closed form: 12 ns a solve on sphere blocks against 69 by
+    // the Newton, which takes two sliding candidates to confirm the same direction (a
+    // microbenchmark; bench/RESULTS.md, "Sliding in closed form").
+    const double scale = mu * stick.x() / std::sqrt(stick_tangential_squared);
+    solution.impulse = Vec3(stick.x(), scale * stick.y(), scale * stick.z());
+  } else {
+    solution.impulse = slide_on_coupled_block(W, W_inverse, u_free, mu, guess);
+  }
+  return solution;
+}
 
 /// A sweep's update of one contact: its new impulse and the change from the current one.
 struct LocalUpdate {
@@ -65,20 +96,9 @@ struct LocalUpdate {
   LocalUpdate update{Vec3::Zero(), Vec3::Zero()};  // open: separating without any impulse
   bool sticks = false;
   if (u_free.x() < 0.0) {
-    const Vec3 stick = r - step;
-    const double stick_tangential_squared = stick.y() * stick.y() + stick.z() * stick.z();
-    if (stick.x() > 0.0 && stick_tangential_squared <= (mu * stick.x()) * (mu * stick.x())) {
-      sticks = true;
-    } else if (mu == 0.0) {
-      // Frictionless: only the normal row, u_n = W_nn r_n + u_free_n = 0 (solve_local_contact's).
-      update.impulse = Vec3(-u_free.x() / W(0, 0), 0.0, 0.0);
-    } else if (stick.x() > 0.0 && stick_tangential_squared > 0.0 && isotropic_tangential_block(W)) {
-      // Sliding on a sphere's block: solve_local_contact's closed form.
-      const double scale = mu * stick.x() / std::sqrt(stick_tangential_squared);
-      update.impulse = Vec3(stick.x(), scale * stick.y(), scale * stick.z());
-    } else {
-      update.impulse = solve_local_contact(W, W_inverse, u_free, mu, r).impulse;
-    }
+    const LocalSolution local = solve_from_sticking_trial(W, W_inverse, u_free, r - step, mu, r);
+    sticks = local.regime == LocalSolution::Regime::sticking;
+    update.impulse = local.impulse;
   }
   if (sticks) {
     update.change = -relaxation * step;
