@@ -6,7 +6,6 @@
 // it. W = H^T M^-1 H is never assembled: u_k is read off the two bodies' current velocities and an
 // impulse change is applied to them at once (Jean 1999).
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -20,21 +19,6 @@
 #include "nlgs_solver/sweep.hpp"
 
 namespace rubble {
-
-/// std::nextafter(x, +infinity) without the library call, which note_visit made three times for
-/// every point a sweep leaves open (1.2 % of the samples of a step of the mixed deposit; the gain
-/// is within the noise of a whole run): the next float above x by its bit pattern (IEEE 754
-/// orders the patterns of each sign). NaN and +infinity are returned as they are, and both zeros
-/// go to the smallest subnormal, as nextafter does.
-inline float float_above(float x) {
-  if (std::isnan(x) || x == std::numeric_limits<float>::infinity()) return x;
-  if (x == 0.0F) return std::numeric_limits<float>::denorm_min();
-  const auto bits = std::bit_cast<std::uint32_t>(x);
-  return std::bit_cast<float>(x > 0.0F ? bits + 1U : bits - 1U);
-}
-
-/// std::nextafter(x, -infinity) the same way.
-inline float float_below(float x) { return -float_above(-x); }
 
 /// The levers of a contact point on one body, [arm x f_0, arm x f_1, arm x f_2] (f_i the frame's
 /// columns): arm x (frame delta) = levers delta, the torque of a local impulse change delta.
@@ -226,10 +210,11 @@ struct CompactProblem {
     const double size = a.linear.lpNorm<1>() + a.angular.lpNorm<1>() * arm_a + b.linear.lpNorm<1>() +
                         b.angular.lpNorm<1>() * arm_b + std::abs(c.normal_velocity_target) + u.lpNorm<1>() +
                         free_velocity.lpNorm<1>();
-    w.arm_a = float_above(static_cast<float>(arm_a));
-    w.arm_b = float_above(static_cast<float>(arm_b));
-    w.slack = float_below(static_cast<float>(free_velocity.x() - 1e-9 * size));
-    w.snapshot = float_below(static_cast<float>(drift_bound(k, w)));
+    w.arm_a = std::nextafter(static_cast<float>(arm_a), std::numeric_limits<float>::infinity());
+    w.arm_b = std::nextafter(static_cast<float>(arm_b), std::numeric_limits<float>::infinity());
+    w.slack =
+        std::nextafter(static_cast<float>(free_velocity.x() - 1e-9 * size), -std::numeric_limits<float>::infinity());
+    w.snapshot = std::nextafter(static_cast<float>(drift_bound(k, w)), -std::numeric_limits<float>::infinity());
   }
 
   /// Stops watching every point: after the impulses changed outside the sweeps (the polish).
