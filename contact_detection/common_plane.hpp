@@ -69,6 +69,8 @@ struct PolyhedronPair {
   bool b_moved = false;                     ///< true once vb and nb hold this pair's B
   std::vector<Vec3> vb;                     ///< m, B's vertices in A's frame
   std::vector<Vec3> nb;                     ///< B's face normals in A's frame
+  std::vector<double> heights_a;            ///< buffer: m, A's vertices' heights along the best normal (edge pruning)
+  std::vector<double> heights_b;            ///< buffer: m, B's vertices' heights along the best normal (edge pruning)
   std::vector<Vec3> va_in_b;                ///< buffer: m, A's vertices in B's frame (edge pruning)
   std::vector<unsigned char> outcodes_a;    ///< buffer: per vertex of A, sides of B's inflated box it lies beyond
   std::vector<unsigned char> outcodes_b;    ///< buffer: per vertex of B, sides of A's inflated box it lies beyond
