@@ -527,13 +527,19 @@ void prefetch(const std::vector<T>& values) {
   for (const char* line = first; line < last; line += 64) __builtin_prefetch(line);
 }
 
-/// The face and edge arrays the search and the contact points read, requested at once for both
-/// bodies: in a large scene a pair's shapes are rarely in cache, and these dozen arrays read one
-/// after the other would each wait for memory in turn; requested together their waits overlap
-/// (and overlap GJK, which reads only the vertices).
-void prefetch_faces_and_edges(const ConvexPolyhedron& shape) {
+/// The face arrays and the vertex graph that the search and the contact points read, requested
+/// at once for both bodies: in a large scene a pair's shapes are rarely in cache, and these arrays
+/// read one after the other would each wait for memory in turn; requested together their waits
+/// overlap (and overlap GJK, which reads only the vertices).
+void prefetch_faces(const ConvexPolyhedron& shape) {
   prefetch(shape.face_normals);
   prefetch(shape.face_offsets);
+  prefetch(shape.vertex_neighbours.offsets);
+  prefetch(shape.vertex_neighbours.indices);
+}
+
+/// The edge arrays, read only by the separating-axis search (overlapping or touching pairs).
+void prefetch_edges(const ConvexPolyhedron& shape) {
   prefetch(shape.edges);
   prefetch(shape.edge_faces);
 }
@@ -594,8 +600,8 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
     result.complete = false;
     return result;
   }
-  prefetch_faces_and_edges(A);
-  prefetch_faces_and_edges(B);
+  prefetch_faces(A);
+  prefetch_faces(B);
   move_b_into_frame_of_a(q);
   BestPlane best{f0, n0, CommonPlaneSource::warm_start};
 
@@ -615,6 +621,8 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
     // Every candidate value is <= touching here, so a candidate s that beats the best has
     // |s| < max(-best, touching).
     if (!gjk.separated) best.value = std::min(best.value, 0.0);
+    prefetch_edges(A);
+    prefetch_edges(B);
     const Witnesses witnesses = gather_witnesses(support_a, support_b, gjk);
     search_face_normals(q, witnesses, best);
     search_edge_pairs(q, witnesses, touching, size, best);

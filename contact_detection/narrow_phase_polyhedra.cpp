@@ -106,20 +106,26 @@ void place_on_plane(const PolyhedronPair& pair, const Vec3& normal_world, PairOn
 }
 
 /// Plane coordinates of the vertices within `depth` of their body's extreme (the deepest caps
-/// and ridges read no others): each computed once, not once per cap.
+/// and ridges read no others): each computed once, not once per cap. Their indices, in increasing
+/// order, go to cap_vertices_a / cap_vertices_b, so that the caps and ridges visit these few
+/// vertices and not the whole body.
 void project_cap_vertices(PairOnPlane& q, double depth) {
   const PolyhedronPair& pair = *q.pair;
   q.plane_a.resize(q.heights_a.size());
+  q.cap_vertices_a.clear();
   for (std::size_t i = 0; i < q.heights_a.size(); ++i) {
     if (q.heights_a[i] < q.top_a - depth) continue;
     const Vec3& v = pair.A->vertices[i];
     q.plane_a[i] = Vec2(q.t.dot(v), q.s.dot(v));
+    q.cap_vertices_a.push_back(static_cast<int>(i));
   }
   q.plane_b.resize(q.heights_b.size());
+  q.cap_vertices_b.clear();
   for (std::size_t i = 0; i < q.heights_b.size(); ++i) {
     if (q.heights_b[i] > q.bottom_b + depth) continue;
     const Vec3& v = pair.vb[i];
     q.plane_b[i] = Vec2(q.t.dot(v), q.s.dot(v));
+    q.cap_vertices_b.push_back(static_cast<int>(i));
   }
 }
 
@@ -142,12 +148,14 @@ double height_b(const PairOnPlane& q, const Vec2& p) {
 /// project_cap_vertices.
 void caps(PairOnPlane& q, double depth, Polygon& cap_a, Polygon& cap_b) {
   q.cap_a.clear();
-  for (std::size_t i = 0; i < q.heights_a.size(); ++i) {
-    if (q.heights_a[i] >= q.top_a - depth) q.cap_a.push_back({q.plane_a[i], static_cast<int>(i)});
+  for (const int i : q.cap_vertices_a) {
+    if (q.heights_a[static_cast<std::size_t>(i)] >= q.top_a - depth)
+      q.cap_a.push_back({q.plane_a[static_cast<std::size_t>(i)], i});
   }
   q.cap_b.clear();
-  for (std::size_t i = 0; i < q.heights_b.size(); ++i) {
-    if (q.heights_b[i] <= q.bottom_b + depth) q.cap_b.push_back({q.plane_b[i], static_cast<int>(i)});
+  for (const int i : q.cap_vertices_b) {
+    if (q.heights_b[static_cast<std::size_t>(i)] <= q.bottom_b + depth)
+      q.cap_b.push_back({q.plane_b[static_cast<std::size_t>(i)], i});
   }
   hull_2d(q.cap_a, q.linear_tolerance, cap_a, q.hull);
   hull_2d(q.cap_b, q.linear_tolerance, cap_b, q.hull);
@@ -249,19 +257,23 @@ void add_closest_features_point(const PairOnPlane& q, const Polygon& polygon_a, 
 void add_ridge_crossings(PairOnPlane& q, double depth) {
   const ConvexPolyhedron& A = *q.pair->A;
   const ConvexPolyhedron& B = *q.pair->B;
+  // A ridge joins two cap vertices: found from the cap's vertices (i < j, in increasing order)
+  // through the vertex graph instead of a scan of every edge.
   q.ridges_a.clear();
-  for (const auto& [i, j] : A.edges) {
-    const auto x = static_cast<std::size_t>(i), y = static_cast<std::size_t>(j);
-    if (q.heights_a[x] < q.top_a - depth || q.heights_a[y] < q.top_a - depth) continue;
-    q.ridges_a.push_back({q.plane_a[x], i});
-    q.ridges_a.push_back({q.plane_a[y], j});
+  for (const int i : q.cap_vertices_a) {
+    for (const int j : A.vertex_neighbours[static_cast<std::size_t>(i)]) {
+      if (j <= i || q.heights_a[static_cast<std::size_t>(j)] < q.top_a - depth) continue;
+      q.ridges_a.push_back({q.plane_a[static_cast<std::size_t>(i)], i});
+      q.ridges_a.push_back({q.plane_a[static_cast<std::size_t>(j)], j});
+    }
   }
   q.ridges_b.clear();
-  for (const auto& [i, j] : B.edges) {
-    const auto x = static_cast<std::size_t>(i), y = static_cast<std::size_t>(j);
-    if (q.heights_b[x] > q.bottom_b + depth || q.heights_b[y] > q.bottom_b + depth) continue;
-    q.ridges_b.push_back({q.plane_b[x], i});
-    q.ridges_b.push_back({q.plane_b[y], j});
+  for (const int i : q.cap_vertices_b) {
+    for (const int j : B.vertex_neighbours[static_cast<std::size_t>(i)]) {
+      if (j <= i || q.heights_b[static_cast<std::size_t>(j)] > q.bottom_b + depth) continue;
+      q.ridges_b.push_back({q.plane_b[static_cast<std::size_t>(i)], i});
+      q.ridges_b.push_back({q.plane_b[static_cast<std::size_t>(j)], j});
+    }
   }
   for (std::size_t ea = 0; ea < q.ridges_a.size(); ea += 2) {
     const CapVertex& from_a = q.ridges_a[ea];

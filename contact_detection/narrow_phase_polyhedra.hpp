@@ -32,6 +32,8 @@ struct PairOnPlane {
   /// m, (t.x, s.x) of the vertices of A within the alert caps' depth (others unset)
   std::vector<contact_polygon::Vec2> plane_a;
   std::vector<contact_polygon::Vec2> plane_b;  ///< m, the same for B
+  std::vector<int> cap_vertices_a;             ///< A's vertices within the alert caps' depth, in increasing order
+  std::vector<int> cap_vertices_b;             ///< B's vertices within the alert caps' depth, in increasing order
   /// A's faces turned towards n, as (m.t, m.s, m.n, offset): its upper surface.
   std::vector<std::array<double, 4>> faces_up;
   /// B's faces turned against n, as (m.t, m.s, m.n, offset) in A's frame: its lower surface.
