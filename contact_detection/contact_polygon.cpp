@@ -21,10 +21,11 @@ void hull_2d(Polygon& points, double tolerance, Polygon& hull, HullBuffers& buff
   // Merge coincident points (keep the lowest vertex id for determinism).
   Polygon& unique = buffers.unique;
   unique.clear();
+  const double tolerance2 = tolerance * tolerance;
   for (const CapVertex& c : points) {
     bool found = false;
     for (CapVertex& u : unique) {
-      if ((u.p - c.p).norm() <= tolerance) {
+      if ((u.p - c.p).squaredNorm() <= tolerance2) {
         found = true;
         u.vertex = std::min(u.vertex, c.vertex);
         break;

@@ -96,11 +96,15 @@ inline bool segments_cross(const Vec2& a0, const Vec2& a1, const Vec2& b0, const
   const Vec2 r = a1 - a0;
   const Vec2 s = b1 - b0;
   const double denominator = cross2(r, s);
-  if (std::abs(denominator) <= 1e-12 * r.norm() * s.norm()) return false;
+  // |r x s| <= 1e-12 |r| |s| compared squared: no square roots on this hot path.
+  if (denominator * denominator <= 1e-24 * r.squaredNorm() * s.squaredNorm()) return false;
   const Vec2 w = b0 - a0;
   const double t = cross2(w, s) / denominator;
   const double u = cross2(w, r) / denominator;
-  if (t < 0.0 || t > 1.0 || u < 0.0 || u > 1.0) return false;
+  // One branch for the four bounds (& rather than ||): which bound fails is not predictable.
+  if (!(static_cast<int>(t >= 0.0) & static_cast<int>(t <= 1.0) & static_cast<int>(u >= 0.0) &
+        static_cast<int>(u <= 1.0)))
+    return false;
   at = a0 + t * r;
   return true;
 }

@@ -165,8 +165,9 @@ void caps(PairOnPlane& q, double depth, Polygon& cap_a, Polygon& cap_b) {
 /// features)? Asked before the surface heights are computed: the support and alert caps and
 /// the ridges find many of the same points, and a height costs a division per face.
 bool coincides(const PairOnPlane& q, const Vec2& p, const std::vector<Candidate>& candidates) {
+  const double tolerance2 = q.feature_tolerance * q.feature_tolerance;
   for (const Candidate& c : candidates) {
-    if ((c.p - p).norm() <= q.feature_tolerance) return true;
+    if ((c.p - p).squaredNorm() <= tolerance2) return true;
   }
   return false;
 }
