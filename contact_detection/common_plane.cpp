@@ -566,13 +566,28 @@ void place_pair(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, Polyhe
   pair.b_moved = false;
 }
 
-void move_b_into_frame_of_a(PolyhedronPair& q) {
-  if (q.b_moved) return;
+namespace {
+
+/// B's vertices into A's frame (pair.vb).
+void move_b_vertices(PolyhedronPair& q) {
   const ConvexPolyhedron& B = *q.B;
   q.vb.resize(B.vertices.size());
   for (std::size_t i = 0; i < q.vb.size(); ++i) q.vb[i] = q.rotation * B.vertices[i] + q.translation;
+}
+
+/// B's face normals into A's frame (pair.nb).
+void move_b_normals(PolyhedronPair& q) {
+  const ConvexPolyhedron& B = *q.B;
   q.nb.resize(B.face_normals.size());
   for (std::size_t f = 0; f < q.nb.size(); ++f) q.nb[f] = q.rotation * B.face_normals[f];
+}
+
+}  // namespace
+
+void move_b_into_frame_of_a(PolyhedronPair& q) {
+  if (q.b_moved) return;
+  move_b_vertices(q);
+  move_b_normals(q);
   q.b_moved = true;
 }
 
@@ -602,11 +617,14 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
   }
   prefetch_faces(A);
   prefetch_faces(B);
-  move_b_into_frame_of_a(q);
+  // B's vertices now, its face normals after GJK: by then their prefetch has arrived.
+  move_b_vertices(q);
   BestPlane best{f0, n0, CommonPlaneSource::warm_start};
 
   // --- 2. apart? GJK gives the exact distance and closest-points direction ---
   const GjkResult gjk = gjk_distance(A.vertices, q.vb, n0, size);
+  move_b_normals(q);
+  q.b_moved = true;
   // Below this distance GJK's closest-points direction is round-off (flush faces a hair apart
   // give a normal tilted by 1e-5 and a gap off by 1e-5 of the size): touching bodies go through
   // the separating-axis search as well, which finds the face normal exactly.
