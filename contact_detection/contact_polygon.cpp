@@ -2,6 +2,7 @@
 
 #include <Eigen/QR>
 #include <algorithm>
+#include <array>
 #include <utility>
 
 namespace rubble::contact_polygon {
@@ -98,6 +99,42 @@ double polygon_area(Polygon& points, Polygon& hull, HullBuffers& buffers) {
   return 0.5 * std::abs(area);
 }
 
+/// The area of the convex hull of four points, on the stack: the same sort, merge of coincident
+/// points and monotone chain as hull_2d with zero tolerance, then the same sum, so the same bits as
+/// polygon_area (which reduce_to_four called once per candidate, with a vector sort and copies).
+double quad_hull_area(std::array<CapVertex, 4> points) {
+  std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
+    return a.p.x() < b.p.x() ||
+           (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
+  });
+  std::array<CapVertex, 4> unique;
+  std::size_t count = 0;
+  for (const CapVertex& c : points) {
+    bool found = false;
+    for (std::size_t k = 0; k < count; ++k) found = found || (unique[k].p - c.p).squaredNorm() <= 0.0;
+    if (!found) unique[count++] = c;
+  }
+  if (count <= 2) return 0.0;
+  std::array<CapVertex, 8> hull;
+  std::size_t k = 0;
+  auto left_turn = [](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
+    return cross2(a.p - o.p, b.p - o.p) > 0.0;
+  };
+  for (std::size_t i = 0; i < count; ++i) {
+    while (k >= 2 && !left_turn(hull[k - 2], hull[k - 1], unique[i])) --k;
+    hull[k++] = unique[i];
+  }
+  for (std::size_t i = count - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && !left_turn(hull[k - 2], hull[k - 1], unique[i])) --k;
+    hull[k++] = unique[i];
+  }
+  const std::size_t size = k - 1;
+  if (size < 3) return 0.0;
+  double area = 0.0;
+  for (std::size_t i = 0; i < size; ++i) area += cross2(hull[i].p, hull[(i + 1) % size].p);
+  return 0.5 * std::abs(area);
+}
+
 }  // namespace
 
 double polygon_area(Polygon points) {
@@ -108,13 +145,11 @@ double polygon_area(Polygon points) {
 
 std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double area_tolerance) {
   std::vector<Candidate> kept;
-  ReductionBuffers buffers;
-  reduce_to_four(all, area_tolerance, kept, buffers);
+  reduce_to_four(all, area_tolerance, kept);
   return kept;
 }
 
-void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept,
-                    ReductionBuffers& buffers) {
+void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept) {
   if (all.size() <= 4) {
     kept.assign(all.begin(), all.end());
     return;
@@ -149,8 +184,7 @@ void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, st
   double best_gain = area_tolerance;
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (i == i1 || i == i2 || i == i3) continue;
-    buffers.quad.assign({{all[i1].p, 0}, {all[i2].p, 1}, {all[i3].p, 2}, {all[i].p, 3}});
-    const double gain = polygon_area(buffers.quad, buffers.quad_hull, buffers.hull) - triangle;
+    const double gain = quad_hull_area({{{all[i1].p, 0}, {all[i2].p, 1}, {all[i3].p, 2}, {all[i].p, 3}}}) - triangle;
     if (gain > best_gain) {
       best_gain = gain;
       i4 = i;

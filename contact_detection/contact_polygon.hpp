@@ -122,11 +122,8 @@ struct Candidate {
 /// The area of the convex hull of `points`, m^2.
 double polygon_area(Polygon points);
 
-/// Working space of reduce_to_four and add_off_plane_points, reused from pair to pair.
+/// Working space of add_off_plane_points, reused from pair to pair.
 struct ReductionBuffers {
-  Polygon quad;                                          ///< the four points whose area is measured
-  Polygon quad_hull;                                     ///< their hull
-  HullBuffers hull;                                      ///< buffers of hull_2d
   std::vector<std::pair<double, std::size_t>> deficits;  ///< add_off_plane_points' candidates
 };
 
@@ -135,9 +132,8 @@ struct ReductionBuffers {
 /// adding the most area (dropped when it adds nothing). Deterministic for a given input order.
 std::vector<Candidate> reduce_to_four(const std::vector<Candidate>& all, double area_tolerance);
 
-/// The same reduction written into `kept`, with caller-owned buffers.
-void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept,
-                    ReductionBuffers& buffers);
+/// The same reduction written into `kept` (its capacity reused from pair to pair).
+void reduce_to_four(const std::vector<Candidate>& all, double area_tolerance, std::vector<Candidate>& kept);
 
 /// The points `reduce_to_four` dropped that the kept ones do not stand for. A rigid relative
 /// motion changes the gap affinely over the plane, so constraints at the kept points hold every

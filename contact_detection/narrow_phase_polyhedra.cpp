@@ -321,7 +321,7 @@ void contacts_on_common_plane(const PolyhedronPair& pair, std::uint32_t body_a, 
   for (const Candidate& c : q.candidates) {
     if (c.gap < alert_distance) q.active.push_back(c);
   }
-  reduce_to_four(q.active, 1e-12 * q.size * q.size, q.kept, q.reduction);
+  reduce_to_four(q.active, 1e-12 * q.size * q.size, q.kept);
   add_off_plane_points(q.active, q.kept, std::max(q.linear_tolerance, 0.01 * alert_distance), max_points_per_pair,
                        q.reduction);
   const Mat3 frame = frame_from_normal(normal_world);

@@ -52,7 +52,7 @@ struct PairOnPlane {
   std::vector<contact_polygon::Candidate> candidates;  ///< buffer: every point of the intersection
   std::vector<contact_polygon::Candidate> active;      ///< buffer: those with a gap below the alert distance
   std::vector<contact_polygon::Candidate> kept;        ///< buffer: the points kept
-  contact_polygon::ReductionBuffers reduction;         ///< buffers of the reduction to the kept points
+  contact_polygon::ReductionBuffers reduction;         ///< buffers of add_off_plane_points
 };
 
 /// Working space of the polyhedral narrow phase, owned by the caller (one per thread) and reused
