@@ -258,8 +258,31 @@ GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, c
         repeated = true;
     }
     if (repeated) break;
+    // Near convergence w lies almost in the plane of the last triangle, and round-off in the flat
+    // tetrahedron they make can claim the origin inside or pick a wrong face, whose closest point
+    // is then farther than v (seen: pairs 2e-5 d apart cycling to the iteration cap, or reported
+    // overlapping). GJK's |v| must decrease (van den Bergen 2003, "Collision Detection in
+    // Interactive 3D Environments", sec. 4.3.7): a step that does not is undone and the search
+    // stops at the last simplex, converged as far as round-off allows.
+    const std::array<SimplexVertex, 4> last_simplex = simplex;
+    const int last_count = count;
+    const Vec3 last_v = v;
     simplex[static_cast<std::size_t>(count++)] = w;
-    if (!reduce_simplex(simplex, count, v)) return keep_simplex(result);  // origin enclosed: overlapping
+    if (!reduce_simplex(simplex, count, v)) {
+      // Enclosed, unless w proves the contrary: w minimises v.x over D, so v.w > 0 puts all of D
+      // beyond the plane v.x = 0, away from the origin (distance >= v.w / |v|).
+      if (last_v.dot(w.w) <= 0.0) return keep_simplex(result);  // origin enclosed: overlapping
+      simplex = last_simplex;
+      count = last_count;
+      v = last_v;
+      break;
+    }
+    if (v.squaredNorm() >= v2) {
+      simplex = last_simplex;
+      count = last_count;
+      v = last_v;
+      break;
+    }
   }
   result.separated = v.norm() > touching;
   result.closest = v;
