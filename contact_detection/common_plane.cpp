@@ -550,13 +550,19 @@ void prefetch(const std::vector<T>& values) {
   for (const char* line = first; line < last; line += 64) __builtin_prefetch(line);
 }
 
-/// The face arrays and the vertex graph that the search and the contact points read, requested
-/// at once for both bodies: in a large scene a pair's shapes are rarely in cache, and these arrays
-/// read one after the other would each wait for memory in turn; requested together their waits
-/// overlap (and overlap GJK, which reads only the vertices).
+/// The face arrays that the search and the contact points read, requested at once for both
+/// bodies: in a large scene a pair's shapes are rarely in cache, and these arrays read one after
+/// the other would each wait for memory in turn; requested together their waits overlap (and
+/// overlap GJK, which reads only the vertices).
 void prefetch_faces(const ConvexPolyhedron& shape) {
   prefetch(shape.face_normals);
   prefetch(shape.face_offsets);
+}
+
+/// The vertex graph, read last (by the contact points' ridges): requested after GJK, once the face
+/// arrays' requests have been served (a hundred lines requested at once outrun the core's
+/// outstanding-miss buffers).
+void prefetch_vertex_graph(const ConvexPolyhedron& shape) {
   prefetch(shape.vertex_neighbours.offsets);
   prefetch(shape.vertex_neighbours.indices);
 }
@@ -648,6 +654,8 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
   const GjkResult gjk = gjk_distance(A.vertices, q.vb, n0, size);
   move_b_normals(q);
   q.b_moved = true;
+  prefetch_vertex_graph(A);
+  prefetch_vertex_graph(B);
   // Below this distance GJK's closest-points direction is round-off (flush faces a hair apart
   // give a normal tilted by 1e-5 and a gap off by 1e-5 of the size): touching bodies go through
   // the separating-axis search as well, which finds the face normal exactly.
