@@ -275,5 +275,50 @@ TEST(ClosestPointOnPolyhedron, CornerEdgeFaceAndInside) {
   EXPECT_FALSE(closest_point_on_polyhedron(cube, Vec3(0.1, 0.2, 0.3), closest));
 }
 
+/// Points a hair outside random polyhedra (distance 1e-5 to 1e-2 of the diameter d = 1): GJK's
+/// closest point (the sphere-polyhedron path) against the nearest point over the faces' triangles,
+/// to 1e-9 d. A point is placed by moving it along the outward normal at its closest point, which
+/// keeps that closest point.
+TEST(ClosestPointOnPolyhedron, PointsAHairOutsideMatchTheNearestFacePoint) {
+  RandomPolyhedronOptions options;
+  options.min_vertices = 10;
+  options.max_vertices = 70;
+  options.merge_angle_degrees = 0.0;  // the reference is the hull's triangles
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  auto nearest_on_surface = [](const ConvexPolyhedron& shape, const Vec3& p) {
+    Vec3 best = Vec3::Zero();
+    double best_distance = std::numeric_limits<double>::infinity();
+    for (const auto face : shape.faces) {
+      const Vec3& v0 = shape.vertices[static_cast<std::size_t>(face[0])];
+      for (std::size_t k = 1; k + 1 < face.size(); ++k) {
+        const Vec3 c = p + closest_on_triangle(v0 - p, shape.vertices[static_cast<std::size_t>(face[k])] - p,
+                                               shape.vertices[static_cast<std::size_t>(face[k + 1])] - p);
+        if ((c - p).norm() < best_distance) {
+          best_distance = (c - p).norm();
+          best = c;
+        }
+      }
+    }
+    return best;
+  };
+  int checked = 0;
+  for (std::uint64_t seed = 0; seed < 100; ++seed) {
+    const ConvexPolyhedron shape = generate_random_polyhedron(options, 9000 + seed);
+    for (int k = 0; k < 100; ++k) {
+      const Vec3 start = (0.6 + 0.8 * uniform(rng)) * shape.bounding_radius * random_direction(rng);
+      const Vec3 foot = nearest_on_surface(shape, start);
+      Vec3 closest;
+      if ((start - foot).norm() < 1e-3 || !closest_point_on_polyhedron(shape, start, closest)) continue;  // inside
+      const double target = std::pow(10.0, -5.0 + 3.0 * uniform(rng));
+      const Vec3 point = foot + target * (start - foot).normalized();
+      ASSERT_TRUE(closest_point_on_polyhedron(shape, point, closest)) << "shape " << seed << " point " << k;
+      ASSERT_NEAR((point - closest).norm(), target, 1e-9) << "shape " << seed << " point " << k;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 4000);
+}
+
 }  // namespace
 }  // namespace rubble
