@@ -268,16 +268,11 @@ GjkResult gjk_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b, c
     const int last_count = count;
     const Vec3 last_v = v;
     simplex[static_cast<std::size_t>(count++)] = w;
-    if (!reduce_simplex(simplex, count, v)) {
-      // Enclosed, unless w proves the contrary: w minimises v.x over D, so v.w > 0 puts all of D
-      // beyond the plane v.x = 0, away from the origin (distance >= v.w / |v|).
-      if (last_v.dot(w.w) <= 0.0) return keep_simplex(result);  // origin enclosed: overlapping
-      simplex = last_simplex;
-      count = last_count;
-      v = last_v;
-      break;
-    }
-    if (v.squaredNorm() >= v2) {
+    const bool enclosed = !reduce_simplex(simplex, count, v);
+    // Enclosed, unless w proves the contrary: w minimises v.x over D, so v.w > 0 puts all of D
+    // beyond the plane v.x = 0, away from the origin (distance >= v.w / |v|).
+    if (enclosed && last_v.dot(w.w) <= 0.0) return keep_simplex(result);  // origin enclosed: overlapping
+    if (enclosed || v.squaredNorm() >= v2) {
       simplex = last_simplex;
       count = last_count;
       v = last_v;
@@ -592,7 +587,6 @@ void place_pair(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, Polyhe
   // Everything is done in A's body frame: A's data is used as stored, B is moved into it.
   pair.rotation = pa.rotation.transpose() * pb.rotation;
   pair.translation = pa.rotation.transpose() * (pb.position - pa.position);
-  pair.b_moved = false;
 }
 
 namespace {
@@ -612,13 +606,6 @@ void move_b_normals(PolyhedronPair& q) {
 }
 
 }  // namespace
-
-void move_b_into_frame_of_a(PolyhedronPair& q) {
-  if (q.b_moved) return;
-  move_b_vertices(q);
-  move_b_normals(q);
-  q.b_moved = true;
-}
 
 CommonPlane find_common_plane(const PolyhedronInWorld& pa, const PolyhedronInWorld& pb, const Vec3* initial_normal,
                               double cutoff) {
@@ -653,7 +640,6 @@ CommonPlane find_common_plane(PolyhedronPair& q, const Vec3* initial_normal, dou
   // --- 2. apart? GJK gives the exact distance and closest-points direction ---
   const GjkResult gjk = gjk_distance(A.vertices, q.vb, n0, size);
   move_b_normals(q);
-  q.b_moved = true;
   prefetch_vertex_graph(A);
   prefetch_vertex_graph(B);
   // Below this distance GJK's closest-points direction is round-off (flush faces a hair apart

@@ -54,8 +54,8 @@ struct CommonPlane {
 };
 
 /// Two polyhedra seen from A's body frame, where the common-plane search and the contact points
-/// both work: B's pose relative to A and, once `move_b_into_frame_of_a` has run, B's vertices and
-/// face normals moved there. Built once per pair and read by both stages, so B is moved once
+/// both work: B's pose relative to A and, once find_common_plane has passed its warm start, B's
+/// vertices and face normals moved there. Built once per pair and read by both stages, so B is moved once
 /// (it was moved twice, once by each stage). The buffers at the end are the separating-axis
 /// search's working space: a caller that reuses one PolyhedronPair from pair to pair (one per
 /// thread) allocates nothing once they have grown.
@@ -66,7 +66,6 @@ struct PolyhedronPair {
   Vec3 position_a = Vec3::Zero();           ///< m, world position of A's origin (centroid)
   Mat3 rotation = Mat3::Identity();         ///< B's body frame -> A's body frame
   Vec3 translation = Vec3::Zero();          ///< m, B's origin in A's frame
-  bool b_moved = false;                     ///< true once vb and nb hold this pair's B
   std::vector<Vec3> vb;                     ///< m, B's vertices in A's frame
   std::vector<Vec3> nb;                     ///< B's face normals in A's frame
   std::vector<double> heights_a;            ///< buffer: m, A's vertices' heights along the best normal (edge pruning)
@@ -82,9 +81,6 @@ struct PolyhedronPair {
 /// Sets `pair` to A and B (B's pose in A's frame; B's vertices are moved later, only when the
 /// search needs them). Keeps the pair's buffers.
 void place_pair(const PolyhedronInWorld& a, const PolyhedronInWorld& b, PolyhedronPair& pair);
-
-/// Moves B's vertices and face normals into A's frame (pair.vb, pair.nb), once per pair.
-void move_b_into_frame_of_a(PolyhedronPair& pair);
 
 /// The separation f(n) = min_B n.y - max_A n.x along the world unit vector n (from A to B).
 double plane_separation(const PolyhedronInWorld& a, const PolyhedronInWorld& b, const Vec3& normal);

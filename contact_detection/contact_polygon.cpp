@@ -14,11 +14,41 @@ Polygon hull_2d(Polygon points, double tolerance) {
   return hull;
 }
 
+namespace {
+
+/// The order of Andrew's monotone chain: by x, then y, then vertex id (deterministic on ties).
+bool chain_order(const CapVertex& a, const CapVertex& b) {
+  return a.p.x() < b.p.x() ||
+         (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
+}
+
+/// Andrew's monotone chain over `unique[0, count)` (sorted by chain_order, no coincident points,
+/// count >= 3) into `hull` (room for 2 count points): the hull's size, counter-clockwise. A turn
+/// counts only when left by more than `tolerance` (the distance of the third point from the line
+/// of the first two). Shared by hull_2d and quad_hull_area so that both give the same bits.
+template <class Points, class Hull>
+std::size_t monotone_chain(const Points& unique, std::size_t count, double tolerance, Hull& hull) {
+  std::size_t k = 0;
+  auto turn = [&](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
+    const Vec2 oa = a.p - o.p;
+    const Vec2 ob = b.p - o.p;
+    return cross2(oa, ob) > tolerance * oa.norm();
+  };
+  for (std::size_t i = 0; i < count; ++i) {
+    while (k >= 2 && !turn(hull[k - 2], hull[k - 1], unique[i])) --k;
+    hull[k++] = unique[i];
+  }
+  for (std::size_t i = count - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && !turn(hull[k - 2], hull[k - 1], unique[i])) --k;
+    hull[k++] = unique[i];
+  }
+  return k - 1;
+}
+
+}  // namespace
+
 void hull_2d(Polygon& points, double tolerance, Polygon& hull, HullBuffers& buffers) {
-  std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
-    return a.p.x() < b.p.x() ||
-           (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
-  });
+  std::sort(points.begin(), points.end(), chain_order);
   // Merge coincident points (keep the lowest vertex id for determinism).
   Polygon& unique = buffers.unique;
   unique.clear();
@@ -39,22 +69,7 @@ void hull_2d(Polygon& points, double tolerance, Polygon& hull, HullBuffers& buff
     return;
   }
   hull.resize(2 * unique.size());
-  std::size_t k = 0;
-  auto turn = [&](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
-    const Vec2 oa = a.p - o.p;
-    const Vec2 ob = b.p - o.p;
-    // Left turn by more than the tolerance (distance of b from the line o-a).
-    return cross2(oa, ob) > tolerance * oa.norm();
-  };
-  for (const CapVertex& c : unique) {
-    while (k >= 2 && !turn(hull[k - 2], hull[k - 1], c)) --k;
-    hull[k++] = c;
-  }
-  for (std::size_t i = unique.size() - 1, lower = k + 1; i-- > 0;) {
-    while (k >= lower && !turn(hull[k - 2], hull[k - 1], unique[i])) --k;
-    hull[k++] = unique[i];
-  }
-  hull.resize(k - 1);
+  hull.resize(monotone_chain(unique, unique.size(), tolerance, hull));
   if (hull.size() < 2) hull.assign(1, unique.front());
 }
 
@@ -99,14 +114,11 @@ double polygon_area(Polygon& points, Polygon& hull, HullBuffers& buffers) {
   return 0.5 * std::abs(area);
 }
 
-/// The area of the convex hull of four points, on the stack: the same sort, merge of coincident
-/// points and monotone chain as hull_2d with zero tolerance, then the same sum, so the same bits as
+/// The area of the convex hull of four points, on the stack: the same order, merge of coincident
+/// points and chain as hull_2d with zero tolerance, then the same sum, so the same bits as
 /// polygon_area (which reduce_to_four called once per candidate, with a vector sort and copies).
 double quad_hull_area(std::array<CapVertex, 4> points) {
-  std::sort(points.begin(), points.end(), [](const CapVertex& a, const CapVertex& b) {
-    return a.p.x() < b.p.x() ||
-           (a.p.x() == b.p.x() && (a.p.y() < b.p.y() || (a.p.y() == b.p.y() && a.vertex < b.vertex)));
-  });
+  std::sort(points.begin(), points.end(), chain_order);
   std::array<CapVertex, 4> unique;
   std::size_t count = 0;
   for (const CapVertex& c : points) {
@@ -116,19 +128,7 @@ double quad_hull_area(std::array<CapVertex, 4> points) {
   }
   if (count <= 2) return 0.0;
   std::array<CapVertex, 8> hull;
-  std::size_t k = 0;
-  auto left_turn = [](const CapVertex& o, const CapVertex& a, const CapVertex& b) {
-    return cross2(a.p - o.p, b.p - o.p) > 0.0;
-  };
-  for (std::size_t i = 0; i < count; ++i) {
-    while (k >= 2 && !left_turn(hull[k - 2], hull[k - 1], unique[i])) --k;
-    hull[k++] = unique[i];
-  }
-  for (std::size_t i = count - 1, lower = k + 1; i-- > 0;) {
-    while (k >= lower && !left_turn(hull[k - 2], hull[k - 1], unique[i])) --k;
-    hull[k++] = unique[i];
-  }
-  const std::size_t size = k - 1;
+  const std::size_t size = monotone_chain(unique, count, 0.0, hull);
   if (size < 3) return 0.0;
   double area = 0.0;
   for (std::size_t i = 0; i < size; ++i) area += cross2(hull[i].p, hull[(i + 1) % size].p);
