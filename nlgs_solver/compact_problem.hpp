@@ -166,6 +166,27 @@ struct CompactProblem {
     }
   }
 
+  /// Asks the memory for point k's bytes (nlgs_sweep, a few visits ahead). A hint only: nothing
+  /// is read, so it changes no result.
+  void prefetch_point(std::size_t k) const { prefetch_bytes(&points[k], sizeof(Point)); }
+
+  /// Asks the memory for the two bodies of point k and their drifts. Reads the point's body
+  /// indices: call it after prefetch_point(k) has had a few visits' time.
+  void prefetch_bodies(std::size_t k) const {
+    const Point& c = points[k];
+    prefetch_bytes(&bodies[c.a], sizeof(Body));
+    prefetch_bytes(&bodies[c.b], sizeof(Body));
+    __builtin_prefetch(&drift[c.a]);
+    __builtin_prefetch(&drift[c.b]);
+  }
+
+  /// Prefetches every 64-byte line of [first, first + bytes) (the blocks need not be aligned).
+  static void prefetch_bytes(const void* first, std::size_t bytes) {
+    const char* p = static_cast<const char*>(first);
+    for (std::size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(p + offset);
+    __builtin_prefetch(p + bytes - 1);
+  }
+
   /// Adds a velocity change of body j to its drift.
   void add_drift(std::uint32_t j, const Vec3& linear, const Vec3& angular) {
     drift[j].linear += linear.lpNorm<1>();

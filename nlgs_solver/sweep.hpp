@@ -15,6 +15,9 @@
 //   void note_visit(std::size_t k, const Vec3& u, const Vec3& free_velocity, const Vec3& next);
 //       skip points left open that cannot have closed (CompactProblem; nlgs_solver/README.md,
 //       "Open contacts skipped")
+//   void prefetch_point(std::size_t k) const;  and
+//   void prefetch_bodies(std::size_t k) const;
+//       request a later point's data and its bodies ahead of its visit (CompactProblem)
 #include <cmath>
 #include <cstddef>
 #include <span>
@@ -37,7 +40,17 @@ struct SweepResult {
 template <class Problem>
 SweepResult nlgs_sweep(Problem& problem, std::span<const std::size_t> order, double relaxation) {
   SweepResult result;
-  for (const std::size_t k : order) {
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const std::size_t k = order[i];
+    // Past ~10^4 spheres the compact copy (312 bytes a point) leaves the cache and each visit
+    // waited on memory for its point, then for its bodies: ask for them a few points ahead
+    // (bench/RESULTS.md, "Prefetching in the sweeps"). The bodies' request reads the point's body
+    // indices, so it trails the point's request.
+    if constexpr (requires { problem.prefetch_point(k); }) {
+      constexpr std::size_t point_lead = 8, bodies_lead = 4;
+      if (i + point_lead < order.size()) problem.prefetch_point(order[i + point_lead]);
+      if (i + bodies_lead < order.size()) problem.prefetch_bodies(order[i + bodies_lead]);
+    }
     // A point left open whose bodies have not moved enough to close it: its visit would return
     // r = 0 again and add 0 to both sums (CompactProblem::stays_open).
     if constexpr (requires { problem.stays_open(k); }) {
