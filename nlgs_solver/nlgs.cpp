@@ -128,7 +128,7 @@ struct RelaxationSchedule {
 /// processes, so the rest of the step is swept serially. Both paths give the same iterate to the
 /// bit, so this timing-based choice cannot change the result.
 SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan& plan, const ResidualScale& scale,
-                                  bool may_polish, CompactProblem& compact, bool& parallel) {
+                                  bool may_polish, bool may_polish_cluster, CompactProblem& compact, bool& parallel) {
   SolverStats stats;
   GroupSweeps groups;
   std::vector<std::size_t> positions(compact.size());
@@ -173,6 +173,17 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
         stats.converged = true;
         break;
       }
+    } else if (may_polish_cluster && stats.iterations % options.polish_after == 0) {
+      // Too large to polish whole: a stall is often a few grains whose points fight each other
+      // (nlgs_solver/README.md, "The stalled cluster's polish"). Its target, a tenth of the
+      // residual the tolerance allows, leaves the next sweep below the tolerance when the
+      // cluster held nearly all of it.
+      const ClusterPolishOptions cluster{.max_points = options.cluster_polish_max_contacts,
+                                         .iterations = options.polish_iterations,
+                                         .residual_target = 0.1 * options.tolerance * std::sqrt(scale_squared)};
+      const ClusterPolishOutcome polished = polish_stalled_cluster(compact, cluster);
+      stats.newton_iterations += polished.newton_steps;
+      if (polished.points > 0) ++stats.cluster_polishes;
     }
   }
   stats.iterations = std::min(stats.iterations, options.max_iterations);
@@ -228,8 +239,11 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
                            BodyVelocities& velocity) {
   // No polish with rolling or twisting resistance or tangential restitution: the polish knows the
   // Signorini-Coulomb-Newton law only.
-  const bool may_polish = options.polish_after > 0 && contacts.size() <= options.polish_max_contacts &&
-                          options.polish_attempts_per_step > 0 && may_polish_laws(model);
+  const bool polish_laws = options.polish_after > 0 && may_polish_laws(model);
+  const bool may_polish =
+      polish_laws && contacts.size() <= options.polish_max_contacts && options.polish_attempts_per_step > 0;
+  const bool may_polish_cluster =
+      polish_laws && contacts.size() > options.polish_max_contacts && options.cluster_polish_max_contacts > 0;
   const SweepPlan plan = plan_sweep(model, state, contacts, options.block_count);
   // Small problems, or one thread: the same order without an OpenMP team (even a one-thread team
   // costs a futex round trip per sweep).
@@ -254,7 +268,7 @@ SolverStats solve_contacts(const Model& model, const State& state, const SolverO
   if (contacts.empty()) {
     stats.converged = true;
   } else {
-    stats = sweep_until_converged(options, plan, scale, may_polish, compact, parallel);
+    stats = sweep_until_converged(options, plan, scale, may_polish, may_polish_cluster, compact, parallel);
     scatter_compact_problem(model, plan, compact, contacts, velocity, parallel);
   }
   final_residual(compact, plan, scale, parallel, contacts, stats);

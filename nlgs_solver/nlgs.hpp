@@ -41,6 +41,10 @@ struct SolverOptions {
   std::size_t polish_max_contacts = 500;
   /// Polishes per step at most (each after twice the sweeps of the previous one).
   int polish_attempts_per_step = 2;
+  /// Steps with more than polish_max_contacts points: every polish_after sweeps, when a few
+  /// points hold the residual, the points between their grains (at most this many) are polished
+  /// with the others held fixed (nlgs_solver/README.md, "The stalled cluster's polish"). 0 disables it.
+  std::size_t cluster_polish_max_contacts = 256;
   /// Spatial blocks of the sweep (nlgs_solver/README.md, "Sweep order and threads"): the moving
   /// bodies are cut into this many ranges of their Morton (Z-order) sequence, with equal contact
   /// counts; blocks sharing no body are swept concurrently. It fixes the sweep order, so results
@@ -61,7 +65,8 @@ struct SolverStats {
   double residual = 0.0;            ///< natural-map residual ||F|| / ||q_closing|| at exit (see README)
   bool converged = false;           ///< residual <= tolerance within max_iterations
   int polish_attempts = 0;          ///< Newton polishes started (see SolverOptions::polish_after)
-  int newton_iterations = 0;        ///< Newton steps taken by those polishes
+  int newton_iterations = 0;        ///< Newton steps taken by those polishes and the cluster polishes
+  int cluster_polishes = 0;         ///< stalled clusters polished (SolverOptions::cluster_polish_max_contacts)
   std::size_t active_contacts = 0;  ///< contacts carrying a normal impulse at exit
   /// Visits of open points the sweeps passed by, summed over the sweeps (nlgs_solver/README.md,
   /// "Open contacts skipped"): each would have left the point open and changed nothing.

@@ -3,6 +3,8 @@
 #include "nlgs_solver/polish.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -135,10 +137,18 @@ LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<c
   return problem;
 }
 
-PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
-                                     double tolerance) {
-  PolishView view{compact, std::vector<std::size_t>(order.size())};
-  for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
+namespace {
+
+/// Polishes the view's contacts from the current iterate (the others' impulses held fixed: their
+/// part of every velocity is in q), at most `iterations` Levenberg-Marquardt steps, until the
+/// FCLib measure of the view's problem is at most tolerance(||q||). When that lowers the error,
+/// the polished impulses, projected on their cones, are applied to the bodies.
+/// Whether polish_view checks the error of the projected impulses (below) before applying them.
+enum class ProjectedCheck { no, yes };
+
+template <class Tolerance>
+PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int iterations, Tolerance tolerance,
+                          ProjectedCheck check = ProjectedCheck::no) {
   const std::size_t n = view.point.size();
   ScaledProblem scaled = assemble_problem(view, Unknowns::scaled_impulses);
   LocalProblem& problem = scaled.problem;
@@ -152,12 +162,22 @@ PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const st
   }
   problem.q = free_velocities(problem.W, r, u);
   LocalProblemOptions polish;
-  polish.tolerance = tolerance;
+  polish.tolerance = tolerance(problem.q);
   polish.polish_iterations = iterations;
   double error = fclib_error(problem, r, u);
   const double before = error;
   PolishOutcome result;
   result.newton_steps = polish_solution(problem, polish, r, u, error);
+  if (error < before && check == ProjectedCheck::yes) {
+    // An attempt stopped at its step cap may sit well outside the cones: what is applied is the
+    // projection, so its error is what must be lower.
+    for (std::size_t k = 0; k < n; ++k) {
+      const Vec3 projected = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]), problem.mu[k]);
+      for (int i = 0; i < 3; ++i) r[3 * k + static_cast<std::size_t>(i)] = projected[i];
+    }
+    u = local_velocities(problem, r);
+    error = fclib_error(problem, r, u);
+  }
   if (error < before) {
     for (std::size_t k = 0; k < n; ++k) {
       // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
@@ -170,8 +190,96 @@ PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const st
       compact.apply_impulse_change(p, delta);
     }
   }
-  result.converged = error <= tolerance;
+  result.converged = error <= polish.tolerance;
   return result;
+}
+
+}  // namespace
+
+PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
+                                     double tolerance) {
+  PolishView view{compact, std::vector<std::size_t>(order.size())};
+  for (std::size_t p = 0; p < order.size(); ++p) view.point[order[p]] = p;
+  return polish_view(compact, view, iterations, [tolerance](const std::vector<double>&) { return tolerance; });
+}
+
+ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const ClusterPolishOptions& options) {
+  ClusterPolishOutcome outcome;
+  const std::size_t count = compact.size();
+  auto residual_of = [&compact](std::size_t p) {
+    const CompactProblem::Point& c = compact.points[p];
+    return natural_map(c.impulse, compact.local_velocity(p), c.friction_coefficient, c.delassus(0, 0)).squaredNorm();
+  };
+  // Each point's share of the sweeps' residual ||F||^2, on the current iterate.
+  std::vector<double> residual(count);
+  double total = 0.0;
+  for (std::size_t p = 0; p < count; ++p) total += residual[p] = residual_of(p);
+  if (!(total > 0.0)) return outcome;
+  // The fewest points that hold the given share of it (largest first, ties by position).
+  std::vector<std::size_t> ranked(count);
+  for (std::size_t p = 0; p < count; ++p) ranked[p] = p;
+  const std::size_t seeds_at_most = std::min(options.max_seed_points, count);
+  std::partial_sort(
+      ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(seeds_at_most), ranked.end(),
+      [&](std::size_t x, std::size_t y) { return residual[x] > residual[y] || (residual[x] == residual[y] && x < y); });
+  double held = 0.0;
+  std::size_t seeds = 0;
+  while (seeds < seeds_at_most && held < options.residual_share * total) held += residual[ranked[seeds++]];
+  if (held < options.residual_share * total) return outcome;  // spread out: not a stalled cluster
+  // Their moving bodies; every point between those bodies (or between one and a wall) is polished,
+  // and every point touching one of them sees its velocity change.
+  std::vector<char> in_cluster(compact.bodies.size(), 0);
+  std::vector<std::uint32_t> bodies;
+  for (std::size_t i = 0; i < seeds; ++i) {
+    const CompactProblem::Point& c = compact.points[ranked[i]];
+    for (const std::uint32_t body : {c.a, c.b}) {
+      if (compact.bodies[body].inverse_mass != 0.0 && !in_cluster[body]) {
+        in_cluster[body] = 1;
+        bodies.push_back(body);
+      }
+    }
+  }
+  PolishView view{compact, {}};
+  std::vector<std::size_t> touched;
+  for (std::size_t p = 0; p < count; ++p) {
+    const CompactProblem::Point& c = compact.points[p];
+    const bool a_fixed = compact.bodies[c.a].inverse_mass == 0.0, b_fixed = compact.bodies[c.b].inverse_mass == 0.0;
+    if (!in_cluster[c.a] && !in_cluster[c.b]) continue;
+    touched.push_back(p);
+    if ((in_cluster[c.a] || a_fixed) && (in_cluster[c.b] || b_fixed)) view.point.push_back(p);
+  }
+  if (view.point.size() > options.max_points) return outcome;
+  // Kept to undo the polish: only the cluster's bodies and points change (walls are never written).
+  std::vector<CompactProblem::Body> saved_bodies;
+  for (const std::uint32_t body : bodies) saved_bodies.push_back(compact.bodies[body]);
+  std::vector<Vec3> saved_impulses;
+  for (const std::size_t p : view.point) saved_impulses.push_back(compact.points[p].impulse);
+  const double target = options.residual_target;
+  const PolishOutcome polished = polish_view(
+      compact, view, options.iterations,
+      [target](const std::vector<double>& q) {
+        double q_squared = 0.0;
+        for (const double x : q) q_squared += x * x;
+        return q_squared > 0.0 ? target / std::sqrt(q_squared) : 0.0;
+      },
+      ProjectedCheck::yes);
+  outcome.newton_steps = polished.newton_steps;
+  // The block's error fell; the whole residual must too (the points around the cluster see its
+  // new velocities), else the sweeps' iterate is put back as it was, to the bit.
+  double before = 0.0, after = 0.0;
+  for (const std::size_t p : touched) {
+    before += residual[p];
+    after += residual_of(p);
+  }
+  if (!(after < before)) {
+    for (std::size_t i = 0; i < bodies.size(); ++i) compact.bodies[bodies[i]] = saved_bodies[i];
+    for (std::size_t i = 0; i < view.point.size(); ++i) compact.points[view.point[i]].impulse = saved_impulses[i];
+    return outcome;
+  }
+  // The polish may have loaded points a sweep left open: their notes no longer hold.
+  for (const std::size_t p : view.point) compact.watch[p].slack = -std::numeric_limits<float>::infinity();
+  outcome.points = view.point.size();
+  return outcome;
 }
 
 }  // namespace rubble

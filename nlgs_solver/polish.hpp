@@ -28,6 +28,30 @@ struct PolishOutcome {
 PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const std::size_t> order, int iterations,
                                      double tolerance);
 
+/// Limits of the stalled cluster's polish (polish_stalled_cluster).
+struct ClusterPolishOptions {
+  double residual_share = 0.99;      ///< the cluster's seeds hold this share of ||F||^2
+  std::size_t max_seed_points = 64;  ///< more seeds than this: the residual is spread out, no polish
+  std::size_t max_points = 256;      ///< more points between the seeds' bodies than this: no polish
+  int iterations = 20;               ///< Levenberg-Marquardt steps at most
+  double residual_target = 0.0;      ///< ||F|| of the cluster's points to reach, velocity units (the sweeps' measure)
+};
+
+/// What a cluster polish did.
+struct ClusterPolishOutcome {
+  std::size_t points = 0;  ///< points polished and kept (0: no small cluster held the residual, or the polish was undone)
+  int newton_steps = 0;    ///< Levenberg-Marquardt steps taken
+};
+
+/// A block Gauss-Seidel step on the points that hold the sweeps' residual, for a problem too large
+/// for polish_compact_problem (nlgs_solver/README.md, "The stalled cluster's polish"): when at most
+/// `max_seed_points` points hold `residual_share` of ||F||^2, every point between their moving
+/// bodies (or between one and a wall) is polished by Newton steps with every other impulse held
+/// fixed. The result, projected on the cones, is kept when it lowers both that block's error and
+/// the residual of every point touching its grains; otherwise the iterate is restored to the bit.
+/// Serial and in the plan's order: the same result for any thread count.
+ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const ClusterPolishOptions& options);
+
 /// The contact problem of a compact copy whose velocities are still the free velocities (no
 /// impulse applied) as explicit data: u = W r + q with W the Delassus operator in impulses (N s,
 /// symmetric), q the points' local velocities without impulse (m/s, the normal target velocity

@@ -161,6 +161,12 @@ const std::vector<SectionKey<SolverOptions>>& solver_keys() {
        .low = 0,
        .high = 100'000'000,
        .doc = "steps with more contacts are not polished"},
+      {.name = "cluster_polish_max_contacts",
+       .option = [](O& o) -> OptionRef { return &o.cluster_polish_max_contacts; },
+       .low = 0,
+       .high = 100'000'000,
+       .doc = "larger steps: the few grains holding a stalled residual are polished alone, up to this many points; 0 = "
+              "never"},
       {.name = "polish_attempts_per_step",
        .option = [](O& o) -> OptionRef { return &o.polish_attempts_per_step; },
        .low = 1,
