@@ -39,8 +39,9 @@ struct ClusterPolishOptions {
 
 /// What a cluster polish did.
 struct ClusterPolishOutcome {
-  std::size_t points = 0;  ///< points polished and kept (0: no small cluster held the residual, or the polish was undone)
-  int newton_steps = 0;    ///< Levenberg-Marquardt steps taken
+  std::size_t points =
+      0;                 ///< points polished and kept (0: no small cluster held the residual, or the polish was undone)
+  int newton_steps = 0;  ///< Levenberg-Marquardt steps taken
 };
 
 /// A block Gauss-Seidel step on the points that hold the sweeps' residual, for a problem too large
