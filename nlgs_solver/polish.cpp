@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -139,13 +139,14 @@ LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<c
 
 namespace {
 
-/// Polishes the view's contacts from the current iterate (the others' impulses held fixed: their
-/// part of every velocity is in q), at most `iterations` Levenberg-Marquardt steps, until the
-/// FCLib measure of the view's problem is at most tolerance(||q||). When that lowers the error,
-/// the polished impulses, projected on their cones, are applied to the bodies.
-/// Whether polish_view checks the error of the projected impulses (below) before applying them.
+/// Whether polish_view checks the error of the projected impulses before applying them.
 enum class ProjectedCheck { no, yes };
 
+/// Polishes the view's contacts from the current iterate (the others' impulses held fixed: their
+/// part of every velocity is in q), at most `iterations` Levenberg-Marquardt steps, until the
+/// FCLib measure of the view's problem is at most tolerance(q). When that lowers the error (with
+/// ProjectedCheck::yes, the error of the impulses projected on their cones), the polished
+/// impulses, projected on their cones, are applied to the bodies.
 template <class Tolerance>
 PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int iterations, Tolerance tolerance,
                           ProjectedCheck check = ProjectedCheck::no) {
@@ -251,8 +252,10 @@ ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const Clust
   if (view.point.size() > options.max_points) return outcome;
   // Kept to undo the polish: only the cluster's bodies and points change (walls are never written).
   std::vector<CompactProblem::Body> saved_bodies;
+  saved_bodies.reserve(bodies.size());
   for (const std::uint32_t body : bodies) saved_bodies.push_back(compact.bodies[body]);
   std::vector<Vec3> saved_impulses;
+  saved_impulses.reserve(view.point.size());
   for (const std::size_t p : view.point) saved_impulses.push_back(compact.points[p].impulse);
   const double target = options.residual_target;
   const PolishOutcome polished = polish_view(
