@@ -16,6 +16,7 @@
 #include "core/model.hpp"
 #include "core/state.hpp"
 #include "nlgs_solver/nlgs.hpp"
+#include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/sweep.hpp"
 
 namespace rubble {
@@ -138,6 +139,13 @@ struct CompactProblem {
       u.z() -= tangential_target[k].y();
     }
     return u;
+  }
+
+  /// ||F_k||^2, point k's natural map on the current iterate in velocity units (rho = W_nn): the
+  /// sweeps' residual measure, taken once per point (end-of-step residual, the cluster polish).
+  double residual_squared(std::size_t k) const {
+    const Point& c = points[k];
+    return natural_map(c.impulse, full_local_velocity(k), c.friction_coefficient, c.delassus(0, 0)).squaredNorm();
   }
 
   /// Applies the change `delta` of point k's impulse to its two bodies (v += M^-1 H delta).

@@ -203,9 +203,7 @@ void final_residual(const CompactProblem& compact, const SweepPlan& plan, const 
     for (std::size_t p = plan.group_start[g]; p < plan.group_start[g + 1]; ++p) {
       const CompactProblem::Point& point = compact.points[p];
       const Vec3& r = point.impulse;
-      group_residual[g] +=
-          natural_map(r, compact.full_local_velocity(p), point.friction_coefficient, point.delassus(0, 0))
-              .squaredNorm();
+      group_residual[g] += compact.residual_squared(p);
       group_impulse[g] += (point.delassus(0, 0) * r).squaredNorm();
       const auto [spin_residual, spin_impulse] = compact.rotation_residual(p);
       group_residual[g] += spin_residual;

@@ -139,17 +139,12 @@ LocalProblem explicit_contact_problem(const CompactProblem& compact, std::span<c
 
 namespace {
 
-/// Whether polish_view checks the error of the projected impulses before applying them.
-enum class ProjectedCheck { no, yes };
-
 /// Polishes the view's contacts from the current iterate (the others' impulses held fixed: their
 /// part of every velocity is in q), at most `iterations` Levenberg-Marquardt steps, until the
-/// FCLib measure of the view's problem is at most tolerance(q). When that lowers the error (with
-/// ProjectedCheck::yes, the error of the impulses projected on their cones), the polished
-/// impulses, projected on their cones, are applied to the bodies.
+/// FCLib measure of the view's problem is at most tolerance(q). When the impulses projected on their
+/// cones lower the error, they are applied to the bodies.
 template <class Tolerance>
-PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int iterations, Tolerance tolerance,
-                          ProjectedCheck check = ProjectedCheck::no) {
+PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int iterations, Tolerance tolerance) {
   const std::size_t n = view.point.size();
   ScaledProblem scaled = assemble_problem(view, Unknowns::scaled_impulses);
   LocalProblem& problem = scaled.problem;
@@ -169,9 +164,9 @@ PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int i
   const double before = error;
   PolishOutcome result;
   result.newton_steps = polish_solution(problem, polish, r, u, error);
-  if (error < before && check == ProjectedCheck::yes) {
+  if (error < before) {
     // An attempt stopped at its step cap may sit well outside the cones: what is applied is the
-    // projection, so its error is what must be lower.
+    // projection, so its error is what must be lower (and what the convergence test reads).
     for (std::size_t k = 0; k < n; ++k) {
       const Vec3 projected = project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]), problem.mu[k]);
       for (int i = 0; i < 3; ++i) r[3 * k + static_cast<std::size_t>(i)] = projected[i];
@@ -181,7 +176,7 @@ PolishOutcome polish_view(CompactProblem& compact, const PolishView& view, int i
   }
   if (error < before) {
     for (std::size_t k = 0; k < n; ++k) {
-      // Newton's iterate may sit a rounding error outside the cone; the impulse must not.
+      // r~ is on its cone already; the division by d may round it a hair outside.
       const std::size_t p = view.point[k];
       const Vec3 next =
           project_onto_coulomb_cone(Vec3(r[3 * k], r[3 * k + 1], r[3 * k + 2]) / scaled.normal_compliance[k],
@@ -207,14 +202,10 @@ PolishOutcome polish_compact_problem(CompactProblem& compact, std::span<const st
 ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const ClusterPolishOptions& options) {
   ClusterPolishOutcome outcome;
   const std::size_t count = compact.size();
-  auto residual_of = [&compact](std::size_t p) {
-    const CompactProblem::Point& c = compact.points[p];
-    return natural_map(c.impulse, compact.local_velocity(p), c.friction_coefficient, c.delassus(0, 0)).squaredNorm();
-  };
   // Each point's share of the sweeps' residual ||F||^2, on the current iterate.
   std::vector<double> residual(count);
   double total = 0.0;
-  for (std::size_t p = 0; p < count; ++p) total += residual[p] = residual_of(p);
+  for (std::size_t p = 0; p < count; ++p) total += residual[p] = compact.residual_squared(p);
   if (!(total > 0.0)) return outcome;
   // The fewest points that hold the given share of it (largest first, ties by position).
   std::vector<std::size_t> ranked(count);
@@ -258,21 +249,18 @@ ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const Clust
   saved_impulses.reserve(view.point.size());
   for (const std::size_t p : view.point) saved_impulses.push_back(compact.points[p].impulse);
   const double target = options.residual_target;
-  const PolishOutcome polished = polish_view(
-      compact, view, options.iterations,
-      [target](const std::vector<double>& q) {
-        double q_squared = 0.0;
-        for (const double x : q) q_squared += x * x;
-        return q_squared > 0.0 ? target / std::sqrt(q_squared) : 0.0;
-      },
-      ProjectedCheck::yes);
+  const PolishOutcome polished = polish_view(compact, view, options.iterations, [target](const std::vector<double>& q) {
+    double q_squared = 0.0;
+    for (const double x : q) q_squared += x * x;
+    return q_squared > 0.0 ? target / std::sqrt(q_squared) : 0.0;
+  });
   outcome.newton_steps = polished.newton_steps;
   // The block's error fell; the whole residual must too (the points around the cluster see its
   // new velocities), else the sweeps' iterate is put back as it was, to the bit.
   double before = 0.0, after = 0.0;
   for (const std::size_t p : touched) {
     before += residual[p];
-    after += residual_of(p);
+    after += compact.residual_squared(p);
   }
   if (!(after < before)) {
     for (std::size_t i = 0; i < bodies.size(); ++i) compact.bodies[bodies[i]] = saved_bodies[i];

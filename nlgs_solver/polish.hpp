@@ -19,7 +19,8 @@ struct PolishOutcome {
 
 /// One Newton polish of the compact problem's current impulses (see SolverOptions::polish_after),
 /// at most `iterations` steps. When it lowers the error, the impulses and the bodies' velocities
-/// hold the polished solution. `tolerance` is on the FCLib measure of the whole problem
+/// hold the polished solution (projected on the cones, whose error is the one compared). `tolerance` is on the FCLib
+/// measure of the whole problem
 /// (||F|| / ||q|| over every contact, the impulses scaled by W_nn). `order` is the plan's order
 /// (point p is contact order[p]): the polish numbers its unknowns in the ContactList's order, not
 /// the sweeps', because that order fixes the rounding of the factorisation and of the velocity
@@ -39,8 +40,8 @@ struct ClusterPolishOptions {
 
 /// What a cluster polish did.
 struct ClusterPolishOutcome {
-  std::size_t points =
-      0;                 ///< points polished and kept (0: no small cluster held the residual, or the polish was undone)
+  /// Points polished and kept (0: no small cluster held the residual, or the polish was undone).
+  std::size_t points = 0;
   int newton_steps = 0;  ///< Levenberg-Marquardt steps taken
 };
 
