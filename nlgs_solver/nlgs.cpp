@@ -9,11 +9,13 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include "core/parallel.hpp"
+#include "nlgs_solver/anderson.hpp"
 #include "nlgs_solver/compact_problem.hpp"
 #include "nlgs_solver/coulomb.hpp"
 #include "nlgs_solver/polish.hpp"
@@ -137,9 +139,16 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   const bool plain = compact.rotation.empty() && compact.tangential_target.empty();
   int next_polish = options.polish_after;
   RelaxationSchedule schedule{.requested = options.relaxation, .tolerance = options.tolerance};
+  // Not with rotation blocks or tangential targets (their impulses and targets are outside the
+  // mixed state), nor past anderson_max_contacts (its history takes 2 depth copies of the state).
+  std::optional<AndersonAcceleration> anderson;
+  if (plain && options.anderson_depth > 0 && compact.size() <= options.anderson_max_contacts) {
+    anderson.emplace(compact, options.anderson_depth);
+  }
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
     const double relaxation = schedule.relaxation();
+    if (anderson) anderson->before_sweep(compact);
     const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, relaxation, parallel, groups)
                                     : planned_sweep(extended, plan, positions, relaxation, parallel, groups);
     stats.passed_by += sweep.passed_by;
@@ -158,6 +167,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
     const double relative_residual =
         std::sqrt(sweep.residual_squared / std::max(scale_squared, std::numeric_limits<double>::min()));
     schedule.observe(relative_residual);
+    if (anderson) anderson->after_sweep(compact, relative_residual, relaxation);
     if (may_polish && stats.iterations == next_polish && stats.polish_attempts < options.polish_attempts_per_step) {
       ++stats.polish_attempts;
       next_polish *= 2;
@@ -168,6 +178,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
               : options.tolerance;
       const PolishOutcome polished = polish_compact_problem(compact, plan.order, options.polish_iterations, tolerance);
       compact.forget_open_points();  // the polish may have loaded points the sweeps left open
+      if (anderson) anderson->restart();
       stats.newton_iterations += polished.newton_steps;
       if (polished.converged) {
         stats.converged = true;
@@ -184,6 +195,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
       const ClusterPolishOutcome polished = polish_stalled_cluster(compact, cluster);
       stats.newton_iterations += polished.newton_steps;
       if (polished.points > 0) ++stats.cluster_polishes;
+      if (polished.points > 0 && anderson) anderson->restart();
     }
   }
   stats.iterations = std::min(stats.iterations, options.max_iterations);

@@ -51,6 +51,13 @@ struct SolverOptions {
   /// depend on it but never on the number of threads. 1 = one block (a plain sequential sweep in
   /// Morton order).
   int block_count = 16;
+  /// Sweeps remembered by the Anderson acceleration of the sweeps (nlgs_solver/README.md,
+  /// "Anderson acceleration"): after each sweep the iterate is the combination of the last ones
+  /// whose change is least, projected on the cones. 0 disables it.
+  int anderson_depth = 0;
+  /// Steps with more contact points than this are not accelerated: the history holds 2
+  /// anderson_depth copies of the impulses and velocities (about 0.5 kB a point at depth 5).
+  std::size_t anderson_max_contacts = 20000;
   /// When set, called with each step's contact problem (explicit W, q, mu; polish.hpp,
   /// explicit_contact_problem) before the sweeps: to write it as an FCLib file that other solvers
   /// replay (bench_matched_accuracy --write-fclib, bench_siconos). Plain Signorini-Coulomb-Newton

@@ -177,6 +177,16 @@ const std::vector<SectionKey<SolverOptions>>& solver_keys() {
        .low = 1,
        .high = 1'000'000,
        .doc = "spatial blocks of the sweep order (Morton-order ranges swept concurrently)"},
+      {.name = "anderson_depth",
+       .option = [](O& o) -> OptionRef { return &o.anderson_depth; },
+       .low = 0,
+       .high = 50,
+       .doc = "sweeps remembered by the Anderson acceleration of the sweeps; 0 = off"},
+      {.name = "anderson_max_contacts",
+       .option = [](O& o) -> OptionRef { return &o.anderson_max_contacts; },
+       .low = 0,
+       .high = 100'000'000,
+       .doc = "steps with more contacts are not accelerated (the history's memory)"},
   };
   return keys;
 }

@@ -18,7 +18,7 @@
 // Kertesz & Wolf 2005) and two solves meeting the same tolerance may split a grain's load among
 // its contacts differently, while every grain's net impulse, set by its velocity, is the same.
 // Usage: bench_matched_accuracy CHECKPOINT.ckpt [--tolerances 1e-2,1e-3,1e-4] [--steps 5]
-//        [--max-iterations N] [--relaxation OMEGA] [--reference-tolerance 1e-8]
+//        [--max-iterations N] [--relaxation OMEGA] [--anderson-depth M] [--reference-tolerance 1e-8]
 //        [--reference-sweeps 50000] [--reference-polish]
 //        bench_matched_accuracy CHECKPOINT.ckpt --write-fclib FILE.hdf5
 // The second form writes the contact problem of the checkpoint's next step (W, q, mu) as an FCLib
@@ -98,8 +98,10 @@ StepError compare(const Model& model, const ContactList& candidate, const Contac
 }
 
 nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const StepOptions& base, double tolerance,
-                             int max_iterations, double relaxation, const SolverOptions& reference, int steps) {
+                             int max_iterations, double relaxation, int anderson_depth, const SolverOptions& reference,
+                             int steps) {
   StepOptions options = base;
+  if (anderson_depth >= 0) options.solver.anderson_depth = anderson_depth;
   options.solver.tolerance = tolerance;
   if (max_iterations > 0) options.solver.max_iterations = max_iterations;
   if (relaxation > 0.0) options.solver.relaxation = relaxation;
@@ -129,6 +131,7 @@ nlohmann::json run_candidate(const Model& model, const Checkpoint& start, const 
   }
   return {{"tolerance", tolerance},
           {"relaxation", options.solver.relaxation},
+          {"anderson_depth", options.solver.anderson_depth},
           {"steps", steps},
           {"cpu_ms_per_step", 1e3 * cpu / steps},
           {"sweeps_per_step", sweeps / steps},
@@ -169,6 +172,7 @@ int main(int argc, char** argv) {
   int max_iterations = 0;
   bool reference_polish = false;
   double relaxation = 0.0;
+  int anderson_depth = -1;
   app.add_option("checkpoint", checkpoint_file, "checkpoint file (run folder/checkpoints/step-*.ckpt)")->required();
   app.add_option("--tolerances", tolerances, "candidate tolerances")->delimiter(',');
   app.add_option("--steps", steps, "steps per candidate")->check(CLI::PositiveNumber);
@@ -183,6 +187,10 @@ int main(int argc, char** argv) {
             return omega > 0.0 && omega < 2.0 ? std::string() : "expected omega in (0, 2), got '" + text + "'";
           },
           ""));
+  app.add_option("--anderson-depth", anderson_depth,
+                 "sweeps the candidates' Anderson acceleration remembers, 0 = off (default: the scene's); the tight "
+                 "solve never mixes")
+      ->check(CLI::Range(0, 50));
   app.add_flag("--reference-polish", reference_polish,
                "let the tight solve use the Newton polish whatever its size (nlgs.hpp polish_max_contacts)");
   std::string fclib_file;
@@ -202,14 +210,15 @@ int main(int argc, char** argv) {
     SolverOptions reference = scene.run.step.solver;
     reference.tolerance = reference_tolerance;
     reference.max_iterations = reference_sweeps;
+    reference.anderson_depth = 0;
     if (reference_polish) {
       reference.polish_max_contacts = std::numeric_limits<std::size_t>::max();
       reference.polish_attempts_per_step = 100;
       reference.polish_iterations = 50;
     }
     for (const double tolerance : tolerances) {
-      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, relaxation, reference,
-                                 steps)
+      std::cout << run_candidate(scene.model, start, scene.run.step, tolerance, max_iterations, relaxation,
+                                 anderson_depth, reference, steps)
                        .dump()
                 << std::endl;
     }
