@@ -3,15 +3,13 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
-#include <cstddef>
-#include <cstdint>
-#include <limits>
 #include <algorithm>
+#include <cstddef>
+#include <limits>
 
 #include "nlgs_solver/coulomb.hpp"
 
 namespace rubble {
-namespace {}  // namespace
 
 AndersonAcceleration::AndersonAcceleration(const CompactProblem& compact, int depth)
     : depth_(depth),
@@ -51,8 +49,8 @@ void AndersonAcceleration::restart() {
   have_previous_ = false;
 }
 
-bool AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_residual, double relaxation) {
-  if (stopped_) return false;
+void AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_residual, double relaxation) {
+  if (stopped_) return;
   // Anderson mixing can stall where the sweeps alone would not (a status that flips back and
   // forth): a window whose best residual is not `progress` times the previous window's ends it.
   ++sweeps_;
@@ -60,7 +58,7 @@ bool AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_
   if (sweeps_ % window == 0) {
     if (sweeps_ > window && window_best_ > progress * previous_window_best_) {
       stopped_ = true;
-      return false;
+      return;
     }
     previous_window_best_ = window_best_;
     window_best_ = std::numeric_limits<double>::infinity();
@@ -86,7 +84,7 @@ bool AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_
   g_previous_.swap(g_);
   f_previous_.swap(f_);
   have_previous_ = true;
-  if (count_ == 0) return false;
+  if (count_ == 0) return;
 
   // gamma = argmin || f - dF gamma ||, by the normal equations (m <= a few), slightly regularised:
   // the differences become nearly dependent as the sweeps converge.
@@ -120,8 +118,6 @@ bool AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_
     c.impulse = next;
     compact.apply_impulse_change(p, change);
   }
-  ++mixes_;
-  return true;
 }
 
 void AndersonAcceleration::add_difference(std::size_t size) {

@@ -1,7 +1,7 @@
 #pragma once
 // Anderson acceleration of the sweeps (nlgs_solver/README.md, "Anderson acceleration"): a sweep
-// is a fixed-point map x -> G(x) of the impulses (and the bodies' velocities, which follow them
-// affinely), and Gauss-Seidel's slow modes are nearly linear once the contacts keep their status.
+// is a fixed-point map x -> G(x) of the impulses (the bodies' velocities follow them affinely),
+// and Gauss-Seidel's slow modes are nearly linear once the contacts keep their status.
 // After each sweep the next iterate is the combination of the last sweeps' results whose
 // combined change f = G(x) - x is least (Anderson 1965; the "type II" form of Walker and Ni
 // 2011), projected back on the Coulomb cones; a sweep whose residual does not fall below the
@@ -27,15 +27,11 @@ class AndersonAcceleration {
   void before_sweep(const CompactProblem& compact);
 
   /// After the sweep (G(x) in `compact`), with its relative residual and the relaxation it used:
-  /// records it and, when the history allows, replaces the iterate by the mixed one. Returns
-  /// whether it did.
-  bool after_sweep(CompactProblem& compact, double relative_residual, double relaxation);
+  /// records it and, when the history allows, replaces the iterate by the mixed one.
+  void after_sweep(CompactProblem& compact, double relative_residual, double relaxation);
 
   /// Forgets the history: the iterate changed outside the sweeps (a polish).
   void restart();
-
-  /// Mixed iterates written since construction.
-  int mixes() const { return mixes_; }
 
   /// Sweeps per progress window, and the progress asked of one: as RelaxationSchedule's.
   static constexpr int window = 20;
@@ -70,7 +66,6 @@ class AndersonAcceleration {
   double previous_relaxation_ = 0.0;
   int sweeps_ = 0;
   double window_best_ = 0.0, previous_window_best_ = 0.0;
-  int mixes_ = 0;
 };
 
 }  // namespace rubble

@@ -56,7 +56,8 @@ struct SolverOptions {
   /// whose change is least, projected on the cones. 0 disables it.
   int anderson_depth = 0;
   /// Steps with more contact points than this are not accelerated: the history holds 2
-  /// anderson_depth copies of the impulses and velocities (about 0.5 kB a point at depth 5).
+  /// anderson_depth float copies of the loaded points' impulses and five double ones (about
+  /// 0.25 kB a loaded point at depth 5).
   std::size_t anderson_max_contacts = 20000;
   /// When set, called with each step's contact problem (explicit W, q, mu; polish.hpp,
   /// explicit_contact_problem) before the sweeps: to write it as an FCLib file that other solvers
