@@ -3,7 +3,6 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
-#include <algorithm>
 #include <cstddef>
 #include <limits>
 
@@ -37,7 +36,6 @@ void AndersonAcceleration::add_new_live_points(const CompactProblem& compact) {
 }
 
 void AndersonAcceleration::before_sweep(const CompactProblem& compact) {
-  if (stopped_) return;
   for (std::size_t l = 0; l < live_.size(); ++l) {
     for (int j = 0; j < 3; ++j) start_[3 * l + static_cast<std::size_t>(j)] = compact.points[live_[l]].impulse(j);
   }
@@ -50,19 +48,6 @@ void AndersonAcceleration::restart() {
 }
 
 void AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_residual, double relaxation) {
-  if (stopped_) return;
-  // Anderson mixing can stall where the sweeps alone would not (a status that flips back and
-  // forth): a window whose best residual is not `progress` times the previous window's ends it.
-  ++sweeps_;
-  window_best_ = sweeps_ == 1 ? relative_residual : std::min(window_best_, relative_residual);
-  if (sweeps_ % window == 0) {
-    if (sweeps_ > window && window_best_ > progress * previous_window_best_) {
-      stopped_ = true;
-      return;
-    }
-    previous_window_best_ = window_best_;
-    window_best_ = std::numeric_limits<double>::infinity();
-  }
   add_new_live_points(compact);
   // G(x), and f = G(x) - x in velocity units (W_nn r, as the residual), over the live points.
   const std::size_t size = 3 * live_.size();
@@ -113,7 +98,7 @@ void AndersonAcceleration::after_sweep(CompactProblem& compact, double relative_
     CompactProblem::Point& c = compact.points[p];
     const Vec3 next = project_onto_coulomb_cone(mixed, c.friction_coefficient);
     if (next == c.impulse) continue;
-    compact.watch[p] = CompactProblem::OpenWatch{};  // no longer an open point with r = 0
+    compact.forget_open_point(p);
     const Vec3 change = next - c.impulse;
     c.impulse = next;
     compact.apply_impulse_change(p, change);

@@ -5,10 +5,9 @@
 // After each sweep the next iterate is the combination of the last sweeps' results whose
 // combined change f = G(x) - x is least (Anderson 1965; the "type II" form of Walker and Ni
 // 2011), projected back on the Coulomb cones; a sweep whose residual does not fall below the
-// previous one's empties the history, and a window of sweeps without progress ends the mixing
-// for the step (Gauss-Seidel alone is then no worse than without it).
+// previous one's empties the history (and solve_contacts ends the mixing for the step after a
+// window of sweeps without progress, nlgs.cpp's ProgressWindow).
 #include <cstddef>
-#include <limits>
 #include <vector>
 
 #include "nlgs_solver/compact_problem.hpp"
@@ -32,10 +31,6 @@ class AndersonAcceleration {
 
   /// Forgets the history: the iterate changed outside the sweeps (a polish).
   void restart();
-
-  /// Sweeps per progress window, and the progress asked of one: as RelaxationSchedule's.
-  static constexpr int window = 20;
-  static constexpr double progress = 0.9;
 
  private:
   /// The ring slot of the difference `age` sweeps old (0: the newest).
@@ -61,11 +56,8 @@ class AndersonAcceleration {
   int count_ = 0;                                      ///< differences held (<= depth)
   int newest_ = -1;                                    ///< ring slot of the newest difference
   bool have_previous_ = false;
-  bool stopped_ = false;  ///< a window without progress: no more mixing this step
   double previous_residual_ = 0.0;
   double previous_relaxation_ = 0.0;
-  int sweeps_ = 0;
-  double window_best_ = 0.0, previous_window_best_ = 0.0;
 };
 
 }  // namespace rubble

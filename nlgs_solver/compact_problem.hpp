@@ -246,9 +246,13 @@ struct CompactProblem {
     w.snapshot = std::nextafter(static_cast<float>(drift_bound(k, w)), -std::numeric_limits<float>::infinity());
   }
 
-  /// Stops watching every point: after the impulses changed outside the sweeps (the polish).
+  /// Stops watching point k: its impulse changed outside the sweeps (a polish, the Anderson
+  /// mixing), so it may no longer be an open point with r = 0.
+  void forget_open_point(std::size_t k) { watch[k].slack = -std::numeric_limits<float>::infinity(); }
+
+  /// Stops watching every point: after the impulses changed outside the sweeps (the whole polish).
   void forget_open_points() {
-    for (OpenWatch& w : watch) w.slack = -std::numeric_limits<float>::infinity();
+    for (std::size_t k = 0; k < watch.size(); ++k) forget_open_point(k);
   }
 
   /// The angular impulse m of point k's rotation block that the law allows for the current

@@ -82,6 +82,29 @@ void apply_warm_start(const SweepPlan& plan, const ContactList& contacts, bool c
   });
 }
 
+/// Whether the sweeps still make progress: after every `window` sweeps, the window's best residual
+/// must be at most `progress` times the previous window's. Read by the over-relaxation schedule
+/// and by the Anderson mixing, which each stop for the step on the first window without it.
+struct ProgressWindow {
+  static constexpr int window = 20;
+  static constexpr double progress = 0.9;
+
+  int sweeps = 0;  ///< sweeps observed so far
+  double window_best = std::numeric_limits<double>::infinity();
+  double previous_window_best = std::numeric_limits<double>::infinity();
+
+  /// After each sweep, with its relative residual: false when it ends a window without progress.
+  bool observe(double relative_residual) {
+    ++sweeps;
+    window_best = std::min(window_best, relative_residual);
+    if (sweeps % window != 0) return true;
+    const bool progressed = !(window_best > progress * previous_window_best);
+    previous_window_best = window_best;
+    window_best = std::numeric_limits<double>::infinity();
+    return progressed;
+  }
+};
+
 /// When the sweeps over-relax (SolverOptions::relaxation > 1; nlgs_solver/README.md, "Over-
 /// relaxation"). Projected successive over-relaxation moves each point past its local solution,
 /// which speeds up the slow, smooth modes that plain Gauss-Seidel removes one layer of contacts a
@@ -89,19 +112,16 @@ void apply_warm_start(const SweepPlan& plan, const ContactList& contacts, bool c
 /// change status can stall under it. So omega is used only between a plain first sweep (most
 /// warm-started steps end there) and plain last sweeps: from the sweep whose residual is within
 /// `near_tolerance` times the tolerance, so that the test ending the solve is a plain sweep's, and
-/// for good once a `window` of sweeps has not lowered the best residual to `progress` times the
-/// previous window's. It reads the sweep residuals only, which do not depend on the thread count.
+/// for good once a window of sweeps has made no progress (ProgressWindow). It reads the sweep
+/// residuals only, which do not depend on the thread count.
 struct RelaxationSchedule {
-  static constexpr int window = 20;
-  static constexpr double progress = 0.9;
   static constexpr double near_tolerance = 3.0;
 
-  double requested = 1.0;  ///< SolverOptions::relaxation
-  double tolerance = 0.0;  ///< SolverOptions::tolerance
-  bool plain = false;      ///< omega = 1 from now on, for this step
-  int sweeps = 0;          ///< sweeps observed so far
-  double window_best = std::numeric_limits<double>::infinity();
-  double previous_window_best = std::numeric_limits<double>::infinity();
+  double requested = 1.0;     ///< SolverOptions::relaxation
+  double tolerance = 0.0;     ///< SolverOptions::tolerance
+  bool plain = false;         ///< omega = 1 from now on, for this step
+  int sweeps = 0;             ///< sweeps observed so far
+  ProgressWindow progress{};  ///< over the over-relaxed sweeps (and the first)
 
   /// omega for the next sweep (under-relaxation, omega < 1, is used as asked in every sweep).
   double relaxation() const {
@@ -114,12 +134,7 @@ struct RelaxationSchedule {
     ++sweeps;
     if (requested <= 1.0 || plain) return;
     if (relative_residual <= near_tolerance * tolerance) plain = true;
-    window_best = std::min(window_best, relative_residual);
-    if (sweeps % window == 0) {
-      if (window_best > progress * previous_window_best) plain = true;
-      previous_window_best = window_best;
-      window_best = std::numeric_limits<double>::infinity();
-    }
+    if (!progress.observe(relative_residual)) plain = true;
   }
 };
 
@@ -140,11 +155,14 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   int next_polish = options.polish_after;
   RelaxationSchedule schedule{.requested = options.relaxation, .tolerance = options.tolerance};
   // Not with rotation blocks or tangential targets (their impulses and targets are outside the
-  // mixed state), nor past anderson_max_contacts (its history takes 2 depth copies of the state).
+  // mixed state), nor past anderson_max_contacts (the memory of its history).
   std::optional<AndersonAcceleration> anderson;
   if (plain && options.anderson_depth > 0 && compact.size() <= options.anderson_max_contacts) {
     anderson.emplace(compact, options.anderson_depth);
   }
+  // The mixing can stall where the sweeps alone would not (a status that flips back and forth):
+  // a window without progress ends it for the step, leaving the sweeps no worse than without it.
+  ProgressWindow mixing_progress;
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
     const auto sweep_start = Clock::now();
     const double relaxation = schedule.relaxation();
@@ -167,6 +185,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
     const double relative_residual =
         std::sqrt(sweep.residual_squared / std::max(scale_squared, std::numeric_limits<double>::min()));
     schedule.observe(relative_residual);
+    if (anderson && !mixing_progress.observe(relative_residual)) anderson.reset();
     if (anderson) anderson->after_sweep(compact, relative_residual, relaxation);
     if (may_polish && stats.iterations == next_polish && stats.polish_attempts < options.polish_attempts_per_step) {
       ++stats.polish_attempts;
@@ -194,8 +213,10 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
                                          .residual_target = 0.1 * options.tolerance * std::sqrt(scale_squared)};
       const ClusterPolishOutcome polished = polish_stalled_cluster(compact, cluster);
       stats.newton_iterations += polished.newton_steps;
-      if (polished.points > 0) ++stats.cluster_polishes;
-      if (polished.points > 0 && anderson) anderson->restart();
+      if (polished.points > 0) {
+        ++stats.cluster_polishes;
+        if (anderson) anderson->restart();
+      }
     }
   }
   stats.iterations = std::min(stats.iterations, options.max_iterations);

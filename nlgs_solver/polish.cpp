@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <utility>
 #include <vector>
 
@@ -268,7 +267,7 @@ ClusterPolishOutcome polish_stalled_cluster(CompactProblem& compact, const Clust
     return outcome;
   }
   // The polish may have loaded points a sweep left open: their notes no longer hold.
-  for (const std::size_t p : view.point) compact.watch[p].slack = -std::numeric_limits<float>::infinity();
+  for (const std::size_t p : view.point) compact.forget_open_point(p);
   outcome.points = view.point.size();
   return outcome;
 }

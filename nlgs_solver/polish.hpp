@@ -19,9 +19,9 @@ struct PolishOutcome {
 
 /// One Newton polish of the compact problem's current impulses (see SolverOptions::polish_after),
 /// at most `iterations` steps. When it lowers the error, the impulses and the bodies' velocities
-/// hold the polished solution (projected on the cones, whose error is the one compared). `tolerance` is on the FCLib
-/// measure of the whole problem
-/// (||F|| / ||q|| over every contact, the impulses scaled by W_nn). `order` is the plan's order
+/// hold the polished solution (projected on the cones, whose error is the one compared).
+/// `tolerance` is on the FCLib measure of the whole problem (||F|| / ||q|| over every contact, the
+/// impulses scaled by W_nn). `order` is the plan's order
 /// (point p is contact order[p]): the polish numbers its unknowns in the ContactList's order, not
 /// the sweeps', because that order fixes the rounding of the factorisation and of the velocity
 /// updates, and the polish computed in it before it moved onto the compact copy (same results to
