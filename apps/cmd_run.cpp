@@ -23,10 +23,12 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <string>
 
 #include "apps/commands.hpp"
 #include "core/input_error.hpp"
 #include "core/input_file.hpp"
+#include "gravity/gravity.hpp"
 #include "simulation/branch.hpp"
 #include "simulation/checkpoint.hpp"
 #include "simulation/output_lock.hpp"
@@ -352,8 +354,9 @@ void print_run_header(std::ostream& out, const Scene& scene, const std::string* 
 }
 
 /// The lines of a finished run: steps, time, solver figures, the time per stage, the output and
-/// the final state's hash, and how to look at it.
-void print_run_summary(const RunSummary& summary, bool resuming) {
+/// the final state's hash, and how to look at it. `hash_note`: what the hash depends on besides the
+/// scene (empty, or the gravity kernels' instruction set).
+void print_run_summary(const RunSummary& summary, bool resuming, const std::string& hash_note) {
   std::cout << "rubble run: done: " << summary.steps << " steps"
             << (summary.first_step > 0
                     ? fmt::format(" ({} at step {})", resuming ? "resumed" : "branched", summary.first_step)
@@ -369,7 +372,7 @@ void print_run_summary(const RunSummary& summary, bool resuming) {
             << stage_breakdown(summary) << "  output: " << summary.run_file.string() << " (" << summary.snapshots
             << " snapshots; layout in docs/output-format.md)\n"
             << "  final state: step " << summary.final_step << ", hash " << fmt::format("{:016x}", summary.state_hash)
-            << ", checkpoint " << summary.last_checkpoint.string() << "\n"
+            << hash_note << ", checkpoint " << summary.last_checkpoint.string() << "\n"
             << "  look at it: rubble post " << summary.run_file.string()
             << " --vtk, then open the .pvd in ParaView, or h5py.File('" << summary.run_file.string() << "')\n";
 }
@@ -416,7 +419,12 @@ int step_the_run(Scene& scene, const RunControl& control, bool resuming, Contact
                 << "\n  go on with: rubble run --resume " << scene.run.output.directory << "\n";
       return 128 + signal_number;
     }
-    print_run_summary(summary, resuming);
+    // The CPU gravity kernels' last bits depend on the CPU's instruction set (gravity.hpp), so a
+    // self-gravitating run's hash is comparable only between machines of the same set.
+    const bool cpu_self_gravity = scene.run.step.gravity.kind == GravitySettings::Kind::self &&
+                                  scene.run.step.gravity.self_gravity.backend == gravity::Backend::cpu;
+    print_run_summary(summary, resuming,
+                      cpu_self_gravity ? " (gravity kernels: " + gravity::kernel_instruction_set() + ")" : "");
   } catch (const NumericalFailure& e) {
     std::cerr << "rubble run: numerical failure: " << e.what() << "\n";
     return exit_numerical_failure;

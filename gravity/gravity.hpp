@@ -147,6 +147,14 @@ FieldTimings compute_field(const GravityOptions& options, std::span<const double
                            std::span<const double> masses, std::span<double> accelerations, std::span<double> potential,
                            FieldWorkspace& workspace);
 
+/// The instruction set of the CPU kernels this process runs, chosen once from the CPU (function
+/// multi-versioning, gravity/kernels.cpp): "avx512" (x86-64-v4, with the hand-vectorized kernels
+/// and their VRSQRT14 estimates), "x86-64-v3" (AVX2 and FMA) or "baseline" (any other CPU or
+/// compiler). The CPU field is bit-identical for any number of threads, but its last bits differ
+/// between these sets (SIMD width of the reductions, fused multiply-adds, the 1/sqrt estimates),
+/// so a run's final hash is reproducible on machines of the same set.
+std::string kernel_instruction_set();
+
 /// Human-readable name of a method ("direct", "tree").
 std::string to_string(Method method);
 

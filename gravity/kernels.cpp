@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gravity/gravity.hpp"
+
 // The kernels are compiled several times (function multi-versioning): the loader picks the widest
 // instruction set the CPU has, so one portable binary still runs 8-wide AVX-512 on CPUs that have
 // it. The choice is fixed per machine, hence so is the order of the SIMD reductions.
@@ -29,6 +31,29 @@
 #define RUBBLE_GRAVITY_AVX512 1
 #include <immintrin.h>
 #endif
+
+namespace rubble::gravity {
+
+std::string kernel_instruction_set() {
+  // The same tests as the dispatch: cpu_has_avx512() below for the hand-vectorized kernels, GCC's
+  // target_clones resolver (the ISA levels) for the others. Without the clones (clang, or
+  // RUBBLE_GRAVITY_NO_CLONES) the other kernels are the baseline build whatever the CPU.
+#if defined(RUBBLE_GRAVITY_AVX512)
+  const bool avx512 = __builtin_cpu_supports("avx512f");
+#else
+  const bool avx512 = false;
+#endif
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
+  if (avx512 && __builtin_cpu_supports("x86-64-v4")) return "avx512";
+  if (!avx512 && __builtin_cpu_supports("x86-64-v3")) return "x86-64-v3";
+  if (!avx512) return "baseline";
+  return "avx512 (other kernels x86-64-v3)";
+#else
+  return avx512 ? "avx512 (other kernels baseline)" : "baseline";
+#endif
+}
+
+}  // namespace rubble::gravity
 
 namespace rubble::gravity::detail {
 
