@@ -45,6 +45,11 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
+# In CI (.ci/run sets RUBBLE_CI=1, on a throw-away machine) dpkg skips its fsync calls: the
+# installation took 85 -> 68 s here (the packages already downloaded). Not on a workstation, where a
+# crash during the installation would leave damaged packages.
+dpkg_options=()
+if [ "${RUBBLE_CI:-0}" = 1 ]; then dpkg_options=(-o Dpkg::Options::=--force-unsafe-io); fi
 $SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+$SUDO apt-get install -y -qq --no-install-recommends "${dpkg_options[@]}" "${missing[@]}" >/dev/null
 echo "install-deps: done"

@@ -6,11 +6,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
 jobs=$(nproc)
+# Each stage's heading says when it started (seconds since the script did), so that a CI log shows
+# where the time went; CI must stay well under 30 minutes.
+stage() { echo "== $1 (at ${SECONDS} s) =="; }
 
-echo "== release build (-Wall -Wextra -Werror) =="
+stage "release build (-Wall -Wextra -Werror)"
 cmake -S . -B build/ci -G Ninja -DCMAKE_BUILD_TYPE=Release -DRUBBLE_WERROR=ON
 cmake --build build/ci -j "$jobs"
-echo "== style and static checks =="
+stage "style and static checks"
 # The whole tree is formatted (.clang-format) and clang-tidy clean (.clang-tidy: bug-prone code,
 # avoidable copies, functions over 80 lines); the check runs on the C++ sources the last commit
 # changed (RUBBLE_TIDY_BASE=REV to check everything changed since REV), a few seconds each.
@@ -27,7 +30,7 @@ if git rev-parse -q --verify "$tidy_base^{commit}" > /dev/null; then
 else
   echo "clang-tidy: no revision $tidy_base to compare with (a checkout without history): skipped"
 fi
-echo "== tests =="
+stage "tests"
 # Threads that wait for work sleep instead of spinning: ctest runs two tests at once on a 2-core
 # machine, each with two OpenMP threads, and a spinning thread took the core its neighbour needed
 # (Accretion.OneHundredTwentyFiveSpheres...: 35 % of its CPU in libgomp's spin-wait; with
@@ -41,11 +44,11 @@ export OMP_WAIT_POLICY=passive
 long_tests='TwoHundredPolyhedraPouredIntoABoxComeToRest|PileOf300PolyhedraAtRestWithDefaults'
 ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 900 -E "$long_tests"
 if [ "${RUBBLE_LONG_TESTS:-0}" = 1 ]; then
-  echo "== long physics tests =="
+  stage "long physics tests"
   ctest --test-dir build/ci -j "$jobs" --output-on-failure --timeout 3600 -R "$long_tests"
 fi
 
-echo "== address + undefined-behaviour sanitizer build (clang, with the fuzz target) =="
+stage "address + undefined-behaviour sanitizer build (clang, with the fuzz target)"
 # clang, not GCC: on a 2-core machine the instrumented build took 701 s (1 520 s of CPU) with GCC
 # and 393 s (878 s) with clang, and the scene parser's fuzz target (scripts/fuzz.sh, libFuzzer:
 # clang only) is built in the same tree instead of a third build of every library (200 s); the
@@ -57,7 +60,7 @@ echo "== address + undefined-behaviour sanitizer build (clang, with the fuzz tar
 # here (tests/CMakeLists.txt).
 ./scripts/configure-sanitizer.sh build/sanitize -DRUBBLE_WERROR=ON
 cmake --build build/sanitize -j "$jobs"
-echo "== tests under sanitizers (label 'slow' and the long polyhedron settling runs excluded) =="
+stage "tests under sanitizers (label 'slow' and the long polyhedron settling runs excluded)"
 # Excluded here (they run in the release pass above): label 'slow' (long dynamics, accretion,
 # determinism), the 10-cube tower and 200-polyhedra pour (10^4 steps each, ~5x slower under ASan),
 # the 10^4-pair common-plane comparison and the long polyhedron stability tests; and the three
@@ -72,5 +75,6 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
 # process exit non-zero; the tests that run the `rubble` binary check its exit code and
 # tests/apps/expect.sh also fails on any "runtime error:" or sanitizer line in its output.
 
-echo "== fuzz the scene parser (libFuzzer + ASan + UBSan, 60 s) =="
+stage "fuzz the scene parser (libFuzzer + ASan + UBSan, 60 s)"
 RUBBLE_FUZZ_BUILD=build/sanitize ./scripts/fuzz.sh 60
+stage "all passed"
