@@ -164,7 +164,7 @@ SolverStats sweep_until_converged(const SolverOptions& options, const SweepPlan&
   // a window without progress ends it for the step, leaving the sweeps no worse than without it.
   ProgressWindow mixing_progress;
   for (stats.iterations = 1; stats.iterations <= options.max_iterations; ++stats.iterations) {
-    const auto sweep_start = Clock::now();
+    const auto sweep_start = parallel ? Clock::now() : Clock::time_point{};
     const double relaxation = schedule.relaxation();
     if (anderson) anderson->before_sweep(compact);
     const SweepResult sweep = plain ? planned_sweep(compact, plan, positions, relaxation, parallel, groups)

@@ -111,7 +111,8 @@ SweepResult planned_sweep(Problem& problem, const SweepPlan& plan, std::span<con
       [&](std::size_t g) {
         const std::size_t first = plan.group_start[g], last = plan.group_start[g + 1];
         if (first == last) return;
-        const auto begin = Clock::now();
+        // Timed only when threaded (clock_gettime was 9 % of a 27-sphere scene's serial sweeps).
+        const auto begin = parallel ? Clock::now() : Clock::time_point{};
         const std::span<const std::size_t> part(positions.data() + first, last - first);
         groups.result[g] = nlgs_sweep(problem, part, relaxation);
         if (parallel) groups.seconds[g] = std::chrono::duration<double>(Clock::now() - begin).count();
