@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "contact_detection/narrow_phase_spheres.hpp"
+#include "core/huge_pages.hpp"
 #include "core/parallel.hpp"
 #include "contact_detection/narrow_phase_polyhedra.hpp"
 
@@ -310,6 +311,9 @@ ContactList collide_listed_pairs(const Model& model, const State& state, double 
   // Last step's count plus 1/8: the list is rarely copied while it grows. Reserved pages that are
   // never written are not resident (a list this large is a fresh mapping).
   contacts.reserve(memory.contact_count + memory.contact_count / 8);
+  // Huge pages over the part last step's count will fill, not the reserve beyond it, which stays
+  // out of memory unless written (core/huge_pages.hpp).
+  advise_huge_pages(contacts.data(), memory.contact_count * sizeof(Contact));
   for (std::size_t first = 0; first < pairs.size(); first += wave) {
     const std::size_t count = std::min(wave, pairs.size() - first);
     const auto count_signed = static_cast<std::ptrdiff_t>(count);

@@ -3,6 +3,7 @@
 
 #include <Eigen/LU>  // Mat3::inverse
 
+#include "core/huge_pages.hpp"
 #include "nlgs_solver/prepare.hpp"
 
 namespace rubble {
@@ -84,6 +85,8 @@ CompactProblem gather_compact_problem(const Model& model, const State& state, co
   CompactProblem out;
   const std::vector<std::uint32_t> local = number_bodies(model, plan, contacts, out);
   out.bodies.resize(out.body_id.size());
+  out.points.reserve(plan.order.size());
+  advise_huge_pages(out.points.data(), plan.order.size() * sizeof(CompactProblem::Point));  // huge_pages.hpp
   out.points.resize(plan.order.size());
   out.drift.resize(out.body_id.size());
   out.watch.resize(plan.order.size());

@@ -1,0 +1,30 @@
+#include "core/huge_pages.hpp"
+
+#include <cstdint>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
+namespace rubble {
+
+std::size_t advise_huge_pages(const void* data, std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if (data == nullptr || bytes < huge_pages_from_bytes) return 0;
+  constexpr std::uintptr_t huge_page = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(data);
+  const std::uintptr_t first = (begin + huge_page - 1) & ~(huge_page - 1);
+  const std::uintptr_t last = (begin + bytes) & ~(huge_page - 1);
+  if (last <= first) return 0;
+  // Refused (EINVAL) by a kernel without transparent huge pages, ignored where they are set to
+  // "never": the memory is then used as before.
+  if (madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE) != 0) return 0;
+  return last - first;
+#else
+  (void)data;
+  (void)bytes;
+  return 0;
+#endif
+}
+
+}  // namespace rubble
