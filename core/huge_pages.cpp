@@ -18,7 +18,9 @@ std::size_t advise_huge_pages(const void* data, std::size_t bytes) {
   if (last <= first) return 0;
   // Refused (EINVAL) by a kernel without transparent huge pages, ignored where they are set to
   // "never": the memory is then used as before.
-  if (madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE) != 0) return 0;
+  // The advised range as an offset from `data` (pointer arithmetic, no integer-to-pointer cast).
+  char* const advised = const_cast<char*>(static_cast<const char*>(data)) + (first - begin);
+  if (madvise(advised, last - first, MADV_HUGEPAGE) != 0) return 0;
   return last - first;
 #else
   (void)data;
