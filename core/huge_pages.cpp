@@ -16,9 +16,9 @@ std::size_t advise_huge_pages(const void* data, std::size_t bytes) {
   const std::uintptr_t first = (begin + huge_page - 1) & ~(huge_page - 1);
   const std::uintptr_t last = (begin + bytes) & ~(huge_page - 1);
   if (last <= first) return 0;
-  // Refused (EINVAL) by a kernel without transparent huge pages, ignored where they are set to
-  // "never": the memory is then used as before.
-  // The advised range as an offset from `data` (pointer arithmetic, no integer-to-pointer cast).
+  // The range as an offset from `data` (no integer-to-pointer cast). A kernel without transparent
+  // huge pages refuses the advice (EINVAL), one set to "never" ignores it: the memory is then used
+  // as before.
   char* const advised = const_cast<char*>(static_cast<const char*>(data)) + (first - begin);
   if (madvise(advised, last - first, MADV_HUGEPAGE) != 0) return 0;
   return last - first;
