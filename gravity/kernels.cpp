@@ -9,6 +9,7 @@
 // instruction set the CPU has, so one portable binary still runs 8-wide AVX-512 on CPUs that have
 // it. The choice is fixed per machine, hence so is the order of the SIMD reductions.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
+#define RUBBLE_GRAVITY_HAS_CLONES 1
 #define RUBBLE_GRAVITY_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define RUBBLE_GRAVITY_CLONES
@@ -31,29 +32,6 @@
 #define RUBBLE_GRAVITY_AVX512 1
 #include <immintrin.h>
 #endif
-
-namespace rubble::gravity {
-
-std::string kernel_instruction_set() {
-  // The same tests as the dispatch: cpu_has_avx512() below for the hand-vectorized kernels, GCC's
-  // target_clones resolver (the ISA levels) for the others. Without the clones (clang, or
-  // RUBBLE_GRAVITY_NO_CLONES) the other kernels are the baseline build whatever the CPU.
-#if defined(RUBBLE_GRAVITY_AVX512)
-  const bool avx512 = __builtin_cpu_supports("avx512f");
-#else
-  const bool avx512 = false;
-#endif
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(RUBBLE_GRAVITY_NO_CLONES)
-  if (avx512 && __builtin_cpu_supports("x86-64-v4")) return "avx512";
-  if (!avx512 && __builtin_cpu_supports("x86-64-v3")) return "x86-64-v3";
-  if (!avx512) return "baseline";
-  return "avx512 (other kernels x86-64-v3)";
-#else
-  return avx512 ? "avx512 (other kernels baseline)" : "baseline";
-#endif
-}
-
-}  // namespace rubble::gravity
 
 namespace rubble::gravity::detail {
 
@@ -572,3 +550,24 @@ void m2p_quadrupole_single(const float* cx, const float* cy, const float* cz, co
 }
 
 }  // namespace rubble::gravity::detail
+
+namespace rubble::gravity {
+
+std::string kernel_instruction_set() {
+  // The dispatch's own tests: detail::cpu_has_avx512() for the hand-vectorized kernels, GCC's
+  // target_clones resolver (the ISA levels) for the others. Without the clones (clang, or
+  // RUBBLE_GRAVITY_NO_CLONES) the other kernels are the baseline build whatever the CPU.
+#if defined(RUBBLE_GRAVITY_AVX512)
+  const bool avx512 = detail::cpu_has_avx512();
+#else
+  const bool avx512 = false;
+#endif
+#if defined(RUBBLE_GRAVITY_HAS_CLONES)
+  if (!avx512) return __builtin_cpu_supports("x86-64-v3") ? "x86-64-v3" : "baseline";
+  return __builtin_cpu_supports("x86-64-v4") ? "avx512" : "avx512 (other kernels x86-64-v3)";
+#else
+  return avx512 ? "avx512 (other kernels baseline)" : "baseline";
+#endif
+}
+
+}  // namespace rubble::gravity
